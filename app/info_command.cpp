@@ -1,0 +1,206 @@
+#include "info_command.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <string>
+
+#include "objscan/capture/tum_folder.h"
+#include "objscan/core/error.h"
+#include "objscan/core/ply_io.h"
+#include "objscan/core/progress.h"
+#include "objscan/core/trajectory.h"
+
+namespace objscan::app {
+namespace fs = std::filesystem;
+
+namespace {
+
+/// A mesh larger than this in any direction is probably not in metres.
+constexpr float kSuspiciousExtent_m = 50.0f;
+
+void row(const char* key, const std::string& value) { std::printf("%-13s %s\n", key, value.c_str()); }
+
+std::string fmt(const char* format, auto... args) {
+  char buf[512];
+  std::snprintf(buf, sizeof buf, format, args...);
+  return buf;
+}
+
+std::string vec(const Eigen::Vector3f& v) { return fmt("(%.4f, %.4f, %.4f)", v.x(), v.y(), v.z()); }
+
+std::string bytesText(std::uintmax_t bytes) {
+  if (bytes >= 10u << 20) return fmt("%.1f MB", static_cast<double>(bytes) / (1 << 20));
+  if (bytes >= 10u << 10) return fmt("%.1f KB", static_cast<double>(bytes) / (1 << 10));
+  return fmt("%ju bytes", bytes);
+}
+
+std::string joined(const std::vector<std::string>& items) {
+  std::string out;
+  for (const auto& s : items) out += (out.empty() ? "" : ", ") + s;
+  return out;
+}
+
+void describeBounds(const Eigen::AlignedBox3f& box) {
+  row("bounds", "min " + vec(box.min()) + " m, max " + vec(box.max()) + " m");
+  const Eigen::Vector3f e = box.sizes();
+  row("extent", fmt("%.4f x %.4f x %.4f m", e.x(), e.y(), e.z()));
+  if (e.maxCoeff() > kSuspiciousExtent_m) {
+    row("note", "larger than 50 m: objscan expects metres; is this file in millimetres or centimetres?");
+  }
+}
+
+void describeMesh(const fs::path& path) {
+  PlyReadReport report;
+  const TriangleMesh mesh = readPly(path, &report);
+  if (mesh.empty()) throw InputError(path, "contains no vertices (an empty mesh)");
+  row("file", path.string());
+  row("type", fmt("mesh (PLY %s, %s)", toString(report.header.format), bytesText(report.file_bytes).c_str()));
+  row("vertices", fmt("%zu (normals: %s, colours: %s)", mesh.positions.size(), mesh.hasNormals() ? "yes" : "no",
+                      mesh.hasColors() ? "yes" : "no"));
+  if (report.faces == 0) {
+    row("faces", "0 (a point cloud)");
+  } else if (report.faces == mesh.triangles.size()) {
+    row("faces", fmt("%zu triangles", report.faces));
+  } else {
+    row("faces", fmt("%zu polygons -> %zu triangles (%zu degenerate dropped)", report.faces,
+                     mesh.triangles.size(), report.degenerate_dropped));
+  }
+  describeBounds(mesh.bounds());
+  if (!mesh.triangles.empty()) row("area", fmt("%.4f m^2", mesh.surfaceArea()));
+  if (!report.ignored.empty()) row("ignored", joined(report.ignored));
+  if (!report.header.comments.empty()) row("comments", joined(report.header.comments));
+}
+
+void describeTrajectory(const fs::path& path) {
+  const Trajectory trajectory = readTumTrajectory(path);
+  row("file", path.string());
+  row("type", "trajectory (TUM format: t tx ty tz qx qy qz qw, camera-to-world)");
+  row("poses", std::to_string(trajectory.size()));
+  const double duration = trajectory.durationS();
+  row("time", fmt("%.6f .. %.6f s (%.2f s%s)", trajectory.poses.front().stamp_s, trajectory.poses.back().stamp_s,
+                  duration,
+                  duration > 0 ? fmt(", %.1f Hz mean", (trajectory.size() - 1) / duration).c_str() : ""));
+  row("path", fmt("%.3f m travelled", trajectory.pathLengthM()));
+  Eigen::AlignedBox3f box;
+  for (const auto& p : trajectory.poses) box.extend(p.T_W_C.translation());
+  row("positions", "min " + vec(box.min()) + " m, max " + vec(box.max()) + " m");
+}
+
+/// Statistics over the valid depth readings of all frames; the median comes from a 1 mm histogram.
+struct DepthSummary {
+  std::size_t pixels = 0;
+  std::size_t valid = 0;
+  float min_m = INFINITY;
+  float max_m = 0.0f;
+  std::vector<std::size_t> histogram_mm = std::vector<std::size_t>(20000, 0);
+
+  void add(const cv::Mat& depth_m) {
+    for (int v = 0; v < depth_m.rows; ++v) {
+      const float* rowp = depth_m.ptr<float>(v);
+      for (int u = 0; u < depth_m.cols; ++u) {
+        const float d = rowp[u];
+        ++pixels;
+        if (!(d > 0.0f) || !std::isfinite(d)) continue;
+        ++valid;
+        min_m = std::min(min_m, d);
+        max_m = std::max(max_m, d);
+        ++histogram_mm[std::min<std::size_t>(static_cast<std::size_t>(d * 1000.0f), histogram_mm.size() - 1)];
+      }
+    }
+  }
+
+  double medianM() const {
+    std::size_t seen = 0;
+    for (std::size_t mm = 0; mm < histogram_mm.size(); ++mm) {
+      seen += histogram_mm[mm];
+      if (2 * seen >= valid) return (static_cast<double>(mm) + 0.5) / 1000.0;
+    }
+    return 0.0;
+  }
+};
+
+void describeTumFolder(const fs::path& path) {
+  const capture::TumFolder folder(path);
+  row("file", path.string());
+  row("type", "recording (TUM RGB-D folder)");
+  row("frames", fmt("%zu (paired by %s)", folder.size(), folder.associationSource().c_str()));
+  const double duration = folder.frames().back().depth_stamp_s - folder.frames().front().depth_stamp_s;
+  if (folder.size() > 1 && duration > 0) {
+    row("time", fmt("%.2f s, %.1f Hz mean", duration, (folder.size() - 1) / duration));
+  }
+  const Intrinsics& in = folder.intrinsics();
+  row("intrinsics", fmt("fx %.1f fy %.1f cx %.1f cy %.1f, %dx%d px (%s)", in.fx_px, in.fy_px, in.cx_px,
+                        in.cy_px, in.width_px, in.height_px,
+                        folder.intrinsicsFromFile() ? "intrinsics.json" : "Xtion defaults: no intrinsics.json"));
+  row("depth units", fmt("raw value / %g = metres", folder.depthFactor()));
+  if (folder.groundTruth()) {
+    row("ground truth", fmt("%zu poses (%s), %.3f m path", folder.groundTruth()->size(),
+                            folder.groundTruthSource().c_str(), folder.groundTruth()->pathLengthM()));
+  } else {
+    row("ground truth", "none");
+  }
+
+  DepthSummary summary;
+  std::size_t with_colour = 0;
+  {
+    ProgressBar progress("reading frames", folder.size());
+    for (std::size_t i = 0; i < folder.size(); ++i) {
+      const RgbdFrame frame = folder.load(i);
+      summary.add(frame.depth_m);
+      with_colour += frame.color_rgb.empty() ? 0 : 1;
+      progress.advance();
+    }
+  }
+  row("images", fmt("all %zu frames decoded, %zu with colour", folder.size(), with_colour));
+  if (summary.valid == 0) {
+    row("depth", "no valid readings in any frame");
+  } else {
+    row("depth", fmt("%.1f %% of pixels valid, %.3f .. %.3f m, median %.3f m",
+                     100.0 * static_cast<double>(summary.valid) / static_cast<double>(summary.pixels),
+                     summary.min_m, summary.max_m, summary.medianM()));
+  }
+}
+
+bool startsWith(const fs::path& path, std::string_view magic) {
+  std::ifstream in(path, std::ios::binary);
+  std::string head(magic.size(), '\0');
+  in.read(head.data(), static_cast<std::streamsize>(head.size()));
+  return in.gcount() == static_cast<std::streamsize>(magic.size()) && head == magic;
+}
+
+}  // namespace
+
+void runInfo(const fs::path& path) {
+  std::error_code ec;
+  const fs::file_status status = fs::status(path, ec);
+  if (status.type() == fs::file_type::not_found) throw InputError(path, "no such file or directory");
+  if (ec) throw InputError(path, "cannot access: " + ec.message());
+  if (status.type() == fs::file_type::directory) {
+    if (!capture::TumFolder::looksLikeTumFolder(path)) {
+      throw InputError(path, "is a directory, not a mesh, trajectory or TUM-format recording "
+                             "(a recording folder has depth.txt or associations.txt)");
+    }
+    describeTumFolder(path);
+    return;
+  }
+  if (status.type() != fs::file_type::regular) throw InputError(path, "is not a regular file");
+  if (fs::file_size(path) == 0) throw InputError(path, "the file is empty");
+
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  if (startsWith(path, "ply") || ext == ".ply") {
+    describeMesh(path);
+  } else if (ext == ".oni") {
+    throw InputError(path, "reading .oni recordings is not built yet (Step C brings OpenNI2 replay)");
+  } else if (ext == ".txt") {
+    describeTrajectory(path);
+  } else {
+    throw InputError(path, "unknown format: expected a .ply mesh, a .txt TUM trajectory, a .oni "
+                           "recording or a TUM-format recording folder");
+  }
+}
+
+}  // namespace objscan::app

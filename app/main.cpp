@@ -1,0 +1,125 @@
+// objscan: the command line. Parses flags, calls the library, prints, chooses the exit code
+// (README, "Exit codes"). Nothing else lives here.
+
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "exit_codes.h"
+#include "info_command.h"
+#include "objscan/core/error.h"
+#include "objscan/core/log.h"
+
+namespace {
+
+using namespace objscan::app;
+
+constexpr const char* kVersion = "0.1.0";
+
+/// A subcommand that the design names but whose step has not been built yet.
+struct Planned {
+  const char* name;
+  const char* summary;
+  const char* step;
+};
+
+constexpr Planned kPlanned[] = {
+    {"devices", "List connected OpenNI2 sensors (Asus Xtion, Kinect v1, ...)", "Step C"},
+    {"record", "Record a live sensor session to an .oni file; Ctrl-C stops cleanly", "Step C"},
+    {"fuse", "Fuse a recording into DIR/mesh.ply and DIR/trajectory.txt (TSDF + ICP)", "Step D"},
+    {"discover", "Segment meshes, measure and rank object hypotheses into DIR", "Step E"},
+    {"render", "Render snapshots of the top hypotheses in DIR into DIR/renders/", "Step F"},
+    {"scan", "Capture (or replay) to ranked objects in one go: fuse, discover, render", "Step F"},
+    {"synth", "Generate a synthetic scene with exact ground truth, as a recording", "Step B"},
+    {"eval", "Precision/recall and AP of hypotheses against labelled ground truth", "Step E"},
+    {"train", "Fit the classifier that scores hypotheses", "Step E"},
+};
+
+/// One line on stderr, whatever the message holds.
+void printError(const std::string& message) {
+  std::string line = message;
+  for (char& c : line) {
+    if (c == '\n' || c == '\r') c = ' ';
+  }
+  std::fprintf(stderr, "objscan: error: %s\n", line.c_str());
+}
+
+int run(int argc, char** argv) {
+  CLI::App app{"objscan: turn an RGB-D capture into a fused mesh and a ranked list of the objects in it.",
+               "objscan"};
+  bool version = false;
+  app.add_flag("--version", version, "Print the version and exit");
+  app.require_subcommand(0, 1);
+  app.fallthrough();
+  bool verbose = false;
+  bool quiet = false;
+  auto* verbose_flag = app.add_flag("-v,--verbose", verbose, "Log details to stderr");
+  app.add_flag("-q,--quiet", quiet, "Log only errors to stderr (no progress)")->excludes(verbose_flag);
+  app.footer("Exit codes: 0 success, 1 runtime failure, 2 bad usage or bad input.\n"
+             "Run 'objscan <command> --help' for a command's options.\n");
+
+  std::string info_path;
+  CLI::App* info = app.add_subcommand("info", "Print what a mesh (.ply), trajectory (TUM .txt) or recording holds");
+  info->add_option("path", info_path, "A .ply mesh, a TUM trajectory .txt, or a TUM-format recording folder")
+      ->required();
+
+  std::vector<std::pair<CLI::App*, const Planned*>> planned;
+  for (const Planned& p : kPlanned) {
+    CLI::App* sub = app.add_subcommand(p.name, std::string(p.summary) + " [not built yet: " + p.step + "]");
+    sub->allow_extras();
+    sub->fallthrough(false);  // whatever follows is the unbuilt command's, not objscan's
+    planned.emplace_back(sub, &p);
+  }
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    printError(std::string(e.what()) + " (run 'objscan --help')");
+    return kExitBadInput;
+  }
+
+  if (version) {
+    std::printf("objscan %s\n", kVersion);
+    return kExitSuccess;
+  }
+  if (app.get_subcommands().empty()) {
+    printError("a command is required (run 'objscan --help')");
+    return kExitBadInput;
+  }
+
+  objscan::log::setLevel(quiet     ? objscan::log::Level::kError
+                         : verbose ? objscan::log::Level::kDebug
+                                   : objscan::log::Level::kInfo);
+
+  for (const auto& [sub, p] : planned) {
+    if (sub->parsed()) {
+      printError(std::string("'") + p->name + "' is not built yet (it arrives with " + p->step + ")");
+      return kExitBadInput;
+    }
+  }
+  if (info->parsed()) runInfo(info_path);
+  return kExitSuccess;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const objscan::InputError& e) {
+    printError(e.what());
+    return kExitBadInput;
+  } catch (const std::invalid_argument& e) {
+    printError(e.what());
+    return kExitBadInput;
+  } catch (const std::exception& e) {
+    printError(e.what());
+    return kExitRuntimeFailure;
+  }
+}

@@ -1,0 +1,18 @@
+#pragma once
+
+#include <filesystem>
+#include <string_view>
+
+namespace objscan {
+
+/// Writes `bytes` to `path` so that `path` is either left as it was or holds all of `bytes`, never a
+/// partial file: the data goes to a temporary file in the same directory, is flushed to disk
+/// (fsync), and is renamed over `path`. Throws OutputError naming the path on any failure, after
+/// removing the temporary file.
+void writeFileAtomically(const std::filesystem::path& path, std::string_view bytes);
+
+/// Reads a whole regular file into memory. Throws InputError when the path is missing, is a
+/// directory or another non-regular file, or cannot be read. An empty file is returned as "".
+std::string readWholeFile(const std::filesystem::path& path);
+
+}  // namespace objscan

@@ -1,0 +1,64 @@
+#pragma once
+
+#include <cstddef>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "objscan/core/triangle_mesh.h"
+
+namespace objscan {
+
+enum class PlyFormat { kAscii, kBinaryLittleEndian, kBinaryBigEndian };
+
+/// "ascii", "binary_little_endian" or "binary_big_endian", as in the PLY header.
+const char* toString(PlyFormat format);
+
+/// What a PLY header declares.
+struct PlyHeader {
+  struct Property {
+    std::string name;
+    std::string type;        ///< item type as written in the header ("float", "uchar", ...)
+    std::string count_type;  ///< list count type; empty for a scalar property
+  };
+  struct Element {
+    std::string name;
+    std::size_t count = 0;
+    std::vector<Property> properties;
+  };
+  PlyFormat format = PlyFormat::kAscii;
+  std::vector<Element> elements;
+  std::vector<std::string> comments;  ///< "comment" and "obj_info" lines, without the keyword
+};
+
+/// What reading a PLY file found besides the mesh itself.
+struct PlyReadReport {
+  PlyHeader header;
+  std::size_t file_bytes = 0;
+  std::size_t faces = 0;                 ///< polygons in the file (before fan triangulation)
+  std::size_t degenerate_dropped = 0;    ///< triangles dropped because a vertex repeats
+  std::size_t trailing_bytes = 0;        ///< bytes after the last element (binary), ignored
+  std::vector<std::string> ignored;      ///< "vertex.s", "material", ... not read into the mesh
+};
+
+/// Reads a PLY mesh (ASCII or binary of either byte order). Vertex properties x, y, z (required),
+/// nx, ny, nz and red, green, blue (uchar, or float/double in 0..1) are read in any order and of any
+/// numeric type; other properties and elements are skipped. Faces are the `vertex_indices` (or
+/// `vertex_index`) list of any integer count/item type; polygons are fan-triangulated, triangles
+/// that repeat a vertex are dropped and counted. A file without faces reads as a point cloud.
+///
+/// Throws InputError naming the file and the problem for anything that is not a complete, valid
+/// PLY mesh: missing/empty/directory, bad magic or header, truncation anywhere (an ASCII file must
+/// end with a newline after its last value), counts larger than the file can hold, unparsable
+/// values, face indices out of range, NaN or infinite coordinates/normals.
+TriangleMesh readPly(const std::filesystem::path& path, PlyReadReport* report = nullptr);
+
+/// Writes x y z [nx ny nz] [red green blue] as float/uchar and faces as `list uchar int
+/// vertex_indices`, the layout MeshLab, CloudCompare, Open3D and PCL all read. Floats in ASCII are
+/// written with the shortest text that reads back to the same value, so both formats round-trip
+/// exactly. The file appears atomically (temporary name, then rename).
+/// Throws std::invalid_argument if mesh.validate() fails, OutputError if writing fails.
+void writePly(const std::filesystem::path& path, const TriangleMesh& mesh,
+              PlyFormat format = PlyFormat::kBinaryLittleEndian);
+
+}  // namespace objscan

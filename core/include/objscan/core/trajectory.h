@@ -1,0 +1,39 @@
+#pragma once
+
+#include <filesystem>
+#include <vector>
+
+#include "objscan/core/pose.h"
+
+namespace objscan {
+
+/// A camera pose at a moment in time.
+struct StampedPose {
+  double stamp_s = 0.0;  ///< seconds; TUM uses UNIX time, so double precision is needed
+  Pose T_W_C = Pose::Identity();
+};
+
+/// Camera poses in time order, the way the TUM RGB-D benchmark stores them: one line per pose,
+/// `t tx ty tz qx qy qz qw`, where (tx, ty, tz) and the unit quaternion (qx, qy, qz, qw) give T_W_C.
+struct Trajectory {
+  std::vector<StampedPose> poses;
+
+  std::size_t size() const { return poses.size(); }
+  bool empty() const { return poses.empty(); }
+  /// Last minus first time stamp; 0 for fewer than two poses.
+  double durationS() const;
+  /// Sum of the distances between consecutive camera positions, metres.
+  double pathLengthM() const;
+};
+
+/// Reads a TUM trajectory. Lines starting with '#' and blank lines are skipped; a line may also be
+/// comma-separated. Quaternions are normalised; one whose norm is off by more than 1 % is an error.
+/// Throws InputError naming the file and line for anything else: missing file, a line without
+/// exactly 8 numbers, NaN, time stamps that go backwards, or no poses at all.
+Trajectory readTumTrajectory(const std::filesystem::path& path);
+
+/// Writes the TUM format (time stamps with microsecond precision, the rest exact), atomically.
+/// Throws OutputError.
+void writeTumTrajectory(const std::filesystem::path& path, const Trajectory& trajectory);
+
+}  // namespace objscan

@@ -1,0 +1,93 @@
+#include "objscan/core/atomic_file.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <fstream>
+#include <random>
+#include <string>
+
+#include "objscan/core/error.h"
+
+namespace objscan {
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string errnoText() { return std::strerror(errno); }
+
+/// A name next to `path` that no other writer picks: "<name>.tmp-<pid>-<random>".
+fs::path temporarySibling(const fs::path& path) {
+  static thread_local std::mt19937_64 rng{std::random_device{}()};
+  fs::path tmp = path;
+  tmp += ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(rng() % 1000000000ULL);
+  return tmp;
+}
+
+}  // namespace
+
+void writeFileAtomically(const fs::path& path, std::string_view bytes) {
+  const fs::path tmp = temporarySibling(path);
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+  if (fd < 0) throw OutputError(path, "cannot create a file there: " + errnoText());
+
+  auto fail = [&](const std::string& what) {
+    const std::string reason = what + ": " + errnoText();
+    ::close(fd);
+    ::unlink(tmp.c_str());
+    throw OutputError(path, reason);
+  };
+
+  const char* data = bytes.data();
+  size_t left = bytes.size();
+  while (left > 0) {
+    const ssize_t n = ::write(fd, data, left);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      fail("write failed");
+    }
+    data += n;
+    left -= static_cast<size_t>(n);
+  }
+  if (::fsync(fd) != 0) fail("fsync failed");
+  if (::close(fd) != 0) {
+    const std::string reason = "close failed: " + errnoText();
+    ::unlink(tmp.c_str());
+    throw OutputError(path, reason);
+  }
+  if (::rename(tmp.c_str(), path.c_str()) != 0) {
+    const std::string reason = "cannot rename the finished file into place: " + errnoText();
+    ::unlink(tmp.c_str());
+    throw OutputError(path, reason);
+  }
+}
+
+std::string readWholeFile(const fs::path& path) {
+  std::error_code ec;
+  const fs::file_status status = fs::status(path, ec);
+  if (status.type() == fs::file_type::not_found) {
+    throw InputError(path, "no such file or directory");
+  }
+  if (ec) throw InputError(path, "cannot access: " + ec.message());
+  if (status.type() == fs::file_type::directory) {
+    throw InputError(path, "is a directory, not a file");
+  }
+  if (status.type() != fs::file_type::regular) throw InputError(path, "is not a regular file");
+
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path, "cannot open for reading: " + errnoText());
+  std::string bytes;
+  in.seekg(0, std::ios::end);
+  const std::streamoff size = in.tellg();
+  if (size < 0) throw InputError(path, "cannot determine the file size");
+  bytes.resize(static_cast<size_t>(size));
+  in.seekg(0, std::ios::beg);
+  in.read(bytes.data(), size);
+  if (in.gcount() != size) throw InputError(path, "read failed after " + std::to_string(in.gcount()) + " bytes");
+  return bytes;
+}
+
+}  // namespace objscan

@@ -1,0 +1,120 @@
+#include "objscan/core/trajectory.h"
+
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <string_view>
+
+#include "objscan/core/atomic_file.h"
+#include "objscan/core/error.h"
+
+namespace objscan {
+namespace {
+
+constexpr double kQuaternionNormTolerance = 0.01;
+
+/// Splits a line on spaces, tabs and commas and parses each field as a double.
+bool parseNumbers(std::string_view line, std::vector<double>& out, std::string& bad) {
+  out.clear();
+  std::size_t i = 0;
+  auto sep = [](char c) { return c == ' ' || c == '\t' || c == ',' || c == '\r'; };
+  while (i < line.size()) {
+    while (i < line.size() && sep(line[i])) ++i;
+    if (i == line.size()) break;
+    const std::size_t start = i;
+    while (i < line.size() && !sep(line[i])) ++i;
+    const char* b = line.data() + start;
+    const char* e = line.data() + i;
+    if (*b == '+') ++b;
+    double v = 0.0;
+    const auto [ptr, ec] = std::from_chars(b, e, v);
+    if (ec != std::errc() || ptr != e) {
+      bad = std::string(line.substr(start, std::min<std::size_t>(i - start, 40)));
+      return false;
+    }
+    out.push_back(v);
+  }
+  return true;
+}
+
+}  // namespace
+
+double Trajectory::durationS() const {
+  return poses.size() < 2 ? 0.0 : poses.back().stamp_s - poses.front().stamp_s;
+}
+
+double Trajectory::pathLengthM() const {
+  double length = 0.0;
+  for (std::size_t i = 1; i < poses.size(); ++i) {
+    length += (poses[i].T_W_C.translation() - poses[i - 1].T_W_C.translation()).cast<double>().norm();
+  }
+  return length;
+}
+
+Trajectory readTumTrajectory(const std::filesystem::path& path) {
+  const std::string text = readWholeFile(path);
+  if (text.empty()) throw InputError(path, "the file is empty");
+  Trajectory trajectory;
+  std::vector<double> v;
+  std::string bad;
+  std::size_t pos = 0;
+  int line_no = 0;
+  while (pos < text.size()) {
+    std::size_t eol = text.find('\n', pos);
+    if (eol == std::string::npos) eol = text.size();
+    const std::string_view line(text.data() + pos, eol - pos);
+    pos = eol + 1;
+    ++line_no;
+    const std::string where = "line " + std::to_string(line_no) + ": ";
+    const std::size_t first = line.find_first_not_of(" \t\r");
+    if (first == std::string_view::npos || line[first] == '#') continue;
+    if (!parseNumbers(line, v, bad)) {
+      throw InputError(path, where + "'" + bad + "' is not a number (expected 't tx ty tz qx qy qz qw')");
+    }
+    if (v.size() != 8) {
+      throw InputError(path, where + "expected 8 numbers 't tx ty tz qx qy qz qw', found " +
+                                 std::to_string(v.size()));
+    }
+    for (double x : v) {
+      if (!std::isfinite(x)) throw InputError(path, where + "contains NaN or infinity");
+    }
+    if (!trajectory.poses.empty() && v[0] < trajectory.poses.back().stamp_s) {
+      throw InputError(path, where + "time stamp " + std::to_string(v[0]) + " is earlier than the line before");
+    }
+    const Eigen::Quaterniond q(v[7], v[4], v[5], v[6]);
+    if (std::abs(q.norm() - 1.0) > kQuaternionNormTolerance) {
+      throw InputError(path, where + "quaternion (qx qy qz qw) has norm " + std::to_string(q.norm()) +
+                                 ", not 1 (is the column order 't tx ty tz qx qy qz qw'?)");
+    }
+    StampedPose sp;
+    sp.stamp_s = v[0];
+    sp.T_W_C = poseFromTranslationQuaternion(Eigen::Vector3d(v[1], v[2], v[3]).cast<float>(),
+                                             q.normalized().cast<float>());
+    trajectory.poses.push_back(sp);
+  }
+  if (trajectory.empty()) throw InputError(path, "contains no poses");
+  return trajectory;
+}
+
+void writeTumTrajectory(const std::filesystem::path& path, const Trajectory& trajectory) {
+  std::string out = "# objscan trajectory, TUM format: timestamp tx ty tz qx qy qz qw (T_W_C, metres)\n";
+  char buf[64];
+  auto put = [&](float x) {
+    const auto r = std::to_chars(buf, buf + sizeof buf, x);  // shortest exact representation
+    out += ' ';
+    out.append(buf, r.ptr);
+  };
+  for (const StampedPose& sp : trajectory.poses) {
+    std::snprintf(buf, sizeof buf, "%.6f", sp.stamp_s);
+    out += buf;
+    const Eigen::Vector3f t = sp.T_W_C.translation();
+    const Eigen::Quaternionf q(sp.T_W_C.rotation());
+    put(t.x()); put(t.y()); put(t.z());
+    put(q.x()); put(q.y()); put(q.z()); put(q.w());
+    out += '\n';
+  }
+  writeFileAtomically(path, out);
+}
+
+}  // namespace objscan

@@ -1,0 +1,72 @@
+#include "objscan/core/triangle_mesh.h"
+
+#include <stdexcept>
+#include <string>
+
+namespace objscan {
+namespace {
+
+std::string str(const Eigen::Vector3f& v) {
+  return "(" + std::to_string(v.x()) + ", " + std::to_string(v.y()) + ", " + std::to_string(v.z()) + ")";
+}
+
+}  // namespace
+
+void TriangleMesh::validate() const {
+  const size_t n = positions.size();
+  for (size_t i = 0; i < n; ++i) {
+    if (!positions[i].allFinite()) {
+      throw std::invalid_argument("vertex " + std::to_string(i) + " has a non-finite position " + str(positions[i]));
+    }
+  }
+  if (!normals.empty()) {
+    if (normals.size() != n) {
+      throw std::invalid_argument("mesh has " + std::to_string(normals.size()) + " normals for " +
+                                  std::to_string(n) + " vertices");
+    }
+    for (size_t i = 0; i < n; ++i) {
+      if (!normals[i].allFinite()) {
+        throw std::invalid_argument("vertex " + std::to_string(i) + " has a non-finite normal " + str(normals[i]));
+      }
+    }
+  }
+  if (!colors.empty() && colors.size() != n) {
+    throw std::invalid_argument("mesh has " + std::to_string(colors.size()) + " colours for " +
+                                std::to_string(n) + " vertices");
+  }
+  const auto count = static_cast<long long>(n);
+  for (size_t t = 0; t < triangles.size(); ++t) {
+    const Eigen::Vector3i& tri = triangles[t];
+    for (int k = 0; k < 3; ++k) {
+      if (tri[k] < 0 || tri[k] >= count) {
+        throw std::invalid_argument("triangle " + std::to_string(t) + " refers to vertex " +
+                                    std::to_string(tri[k]) + ", but the mesh has " +
+                                    std::to_string(n) + " vertices");
+      }
+    }
+    if (tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2]) {
+      throw std::invalid_argument("triangle " + std::to_string(t) + " is degenerate: vertices " +
+                                  std::to_string(tri[0]) + ", " + std::to_string(tri[1]) + ", " +
+                                  std::to_string(tri[2]));
+    }
+  }
+}
+
+Eigen::AlignedBox3f TriangleMesh::bounds() const {
+  Eigen::AlignedBox3f box;
+  for (const auto& p : positions) box.extend(p);
+  return box;
+}
+
+double TriangleMesh::surfaceArea() const {
+  double area = 0.0;
+  for (const auto& t : triangles) {
+    const Eigen::Vector3d a = positions[t[0]].cast<double>();
+    const Eigen::Vector3d b = positions[t[1]].cast<double>();
+    const Eigen::Vector3d c = positions[t[2]].cast<double>();
+    area += 0.5 * (b - a).cross(c - a).norm();
+  }
+  return area;
+}
+
+}  // namespace objscan

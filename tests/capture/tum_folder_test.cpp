@@ -1,0 +1,130 @@
+#include "objscan/capture/tum_folder.h"
+
+#include <gtest/gtest.h>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "objscan/core/error.h"
+#include "test_support.h"
+
+namespace objscan::capture {
+namespace {
+
+using objscan::testing::TempDir;
+using objscan::testing::writeBytes;
+
+/// Writes a 4x3 TUM folder with frames whose depth pixel (u, v) is 1000 * (frame + 1) + 10 * v + u
+/// raw units, and whose colour is (R, G, B) = (frame, u, v).
+void makeFolder(const std::filesystem::path& dir, int frames, const std::vector<double>& rgb_offsets_s) {
+  std::filesystem::create_directories(dir / "rgb");
+  std::filesystem::create_directories(dir / "depth");
+  std::string rgb_txt = "# color images\n# timestamp filename\n", depth_txt = "# depth maps\n";
+  for (int f = 0; f < frames; ++f) {
+    cv::Mat depth(3, 4, CV_16UC1), bgr(3, 4, CV_8UC3);
+    for (int v = 0; v < 3; ++v) {
+      for (int u = 0; u < 4; ++u) {
+        depth.at<std::uint16_t>(v, u) = static_cast<std::uint16_t>(1000 * (f + 1) + 10 * v + u);
+        bgr.at<cv::Vec3b>(v, u) = cv::Vec3b(v, u, f);  // OpenCV stores B, G, R
+      }
+    }
+    depth.at<std::uint16_t>(0, 0) = 0;  // no reading
+    const double t = 100.0 + f / 30.0;
+    const std::string name = std::to_string(f) + ".png";
+    cv::imwrite((dir / "depth" / name).string(), depth);
+    cv::imwrite((dir / "rgb" / name).string(), bgr);
+    depth_txt += std::to_string(t) + " depth/" + name + "\n";
+    rgb_txt += std::to_string(t + rgb_offsets_s[f]) + " rgb/" + name + "\n";
+  }
+  writeBytes(dir / "rgb.txt", rgb_txt);
+  writeBytes(dir / "depth.txt", depth_txt);
+  writeBytes(dir / "intrinsics.json",
+             R"({"fx": 5, "fy": 5, "cx": 1.5, "cy": 1, "width": 4, "height": 3, "depth_factor": 1000})");
+}
+
+TEST(TumFolder, DepthIsRawOverFactorAndColourIsRgbOrder) {
+  TempDir dir;
+  makeFolder(dir.path(), 2, {0.0, 0.0});
+  const TumFolder folder(dir.path());
+  ASSERT_EQ(folder.size(), 2u);
+  EXPECT_TRUE(folder.intrinsicsFromFile());
+  EXPECT_DOUBLE_EQ(folder.depthFactor(), 1000.0);
+  const RgbdFrame frame = folder.load(1);
+  EXPECT_NO_THROW(frame.validate());
+  EXPECT_EQ(frame.depth_m.at<float>(0, 0), 0.0f);
+  EXPECT_FLOAT_EQ(frame.depth_m.at<float>(2, 3), 2.023f);  // (2000 + 20 + 3) / 1000
+  EXPECT_EQ(frame.color_rgb.at<cv::Vec3b>(2, 3), cv::Vec3b(1, 3, 2));
+  EXPECT_NEAR(frame.stamp_s, 100.0 + 1 / 30.0, 1e-6);
+}
+
+TEST(TumFolder, PairsDepthWithNearestColourWithinTwentyMilliseconds) {
+  TempDir dir;
+  // Frame 1's colour is 25 ms late: too far, so that depth frame is skipped like associate.py does.
+  makeFolder(dir.path(), 3, {0.005, 0.025, -0.01});
+  const TumFolder folder(dir.path());
+  ASSERT_EQ(folder.size(), 2u);
+  EXPECT_EQ(folder.frames()[0].rgb, "rgb/0.png");
+  EXPECT_EQ(folder.frames()[1].depth, "depth/2.png");
+  EXPECT_EQ(folder.frames()[1].rgb, "rgb/2.png");
+  EXPECT_NE(folder.associationSource().find("nearest"), std::string::npos);
+}
+
+TEST(TumFolder, AssociationFileInEitherColumnOrderWithGroundTruth) {
+  TempDir dir;
+  makeFolder(dir.path(), 2, {0.0, 0.0});
+  writeBytes(dir / "associations.txt",
+             "100.0 depth/0.png 100.0 rgb/0.png\n"
+             "100.033 depth/1.png 100.033 rgb/1.png 100.03 1 2 3 0 0 0 1\n");
+  EXPECT_THROW(TumFolder{dir.path()}, InputError) << "4 or 12 fields on every line";
+  writeBytes(dir / "associations.txt",
+             "100.0 depth/0.png 100.0 rgb/0.png 100.0 0 0 0 0 0 0 1\n"
+             "100.033 depth/1.png 100.033 rgb/1.png 100.03 1 2 3 0 0 0 1\n");
+  const TumFolder folder(dir.path());
+  ASSERT_EQ(folder.size(), 2u);
+  EXPECT_EQ(folder.frames()[1].depth, "depth/1.png");
+  EXPECT_EQ(folder.frames()[1].rgb, "rgb/1.png");
+  ASSERT_TRUE(folder.groundTruth().has_value());
+  EXPECT_EQ(folder.groundTruth()->poses[1].T_W_C.translation(), Eigen::Vector3f(1, 2, 3));
+}
+
+TEST(TumFolder, BadFoldersAndImagesAreInputErrors) {
+  TempDir dir;
+  EXPECT_THROW(TumFolder{dir.path()}, InputError) << "empty folder";
+  EXPECT_THROW(TumFolder{dir / "absent"}, InputError);
+  makeFolder(dir.path(), 2, {0.0, 0.0});
+  std::filesystem::remove(dir / "rgb" / "1.png");
+  try {
+    TumFolder folder(dir.path());
+    ADD_FAILURE();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("rgb/1.png: listed in depth.txt + rgb.txt"), std::string::npos) << e.what();
+  }
+  cv::imwrite((dir / "rgb" / "1.png").string(), cv::Mat(3, 4, CV_8UC3));
+  cv::imwrite((dir / "depth" / "1.png").string(), cv::Mat(3, 4, CV_8UC1, cv::Scalar(5)));
+  const TumFolder folder(dir.path());
+  EXPECT_THROW(folder.load(1), InputError) << "8-bit depth";
+  writeBytes(dir / "depth" / "1.png", testing::readBytes(dir / "depth" / "0.png").substr(0, 40));
+  EXPECT_THROW(folder.load(1), InputError) << "truncated PNG";
+  cv::imwrite((dir / "depth" / "1.png").string(), cv::Mat(6, 8, CV_16UC1, cv::Scalar(5)));
+  EXPECT_THROW(folder.load(1), InputError) << "size differs from intrinsics";
+}
+
+TEST(TumFolder, ShippedRecordingOpensWithItsCalibrationAndGroundTruth) {
+  const TumFolder folder(std::filesystem::path(OBJSCAN_SOURCE_DIR) / "recordings" / "tum_fr2_desk_10");
+  ASSERT_EQ(folder.size(), 10u);
+  EXPECT_DOUBLE_EQ(folder.intrinsics().fx_px, 520.9);
+  EXPECT_DOUBLE_EQ(folder.depthFactor(), 5000.0);
+  ASSERT_TRUE(folder.groundTruth().has_value());
+  EXPECT_EQ(folder.groundTruth()->size(), 10u);
+  const RgbdFrame frame = folder.load(0);
+  EXPECT_NO_THROW(frame.validate());
+  // A desk scene at 1-3 m: most readings are valid and within the Kinect's range.
+  const int valid = cv::countNonZero(frame.depth_m > 0.0f);
+  EXPECT_GT(valid, 640 * 480 / 2);
+  double lo = 0, hi = 0;
+  cv::minMaxLoc(frame.depth_m, &lo, &hi, nullptr, nullptr, frame.depth_m > 0.0f);
+  EXPECT_GT(lo, 0.4);
+  EXPECT_LT(hi, 12.0);
+}
+
+}  // namespace
+}  // namespace objscan::capture

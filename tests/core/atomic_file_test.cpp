@@ -1,0 +1,76 @@
+#include "objscan/core/atomic_file.h"
+
+#include <gtest/gtest.h>
+#include <sys/resource.h>
+
+#include <csignal>
+
+#include "objscan/core/error.h"
+#include "test_support.h"
+
+namespace objscan {
+namespace {
+
+std::size_t entries(const std::filesystem::path& dir) {
+  std::size_t n = 0;
+  for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator(dir)) ++n;
+  return n;
+}
+
+TEST(AtomicFile, WritesAndReplacesWholeContents) {
+  testing::TempDir dir;
+  writeFileAtomically(dir / "f", "first version, longer");
+  writeFileAtomically(dir / "f", "second");
+  EXPECT_EQ(readWholeFile(dir / "f"), "second");
+  EXPECT_EQ(entries(dir.path()), 1u);
+}
+
+TEST(AtomicFile, FailedWriteLeavesTheOldFileAndNoTemporary) {
+  // A file-size limit makes write() fail with EFBIG part-way, as a full disk would, and works
+  // for root too (directory permissions do not).
+  testing::TempDir dir;
+  writeFileAtomically(dir / "f", "old");
+  struct rlimit saved {};
+  ASSERT_EQ(::getrlimit(RLIMIT_FSIZE, &saved), 0);
+  const auto old_handler = std::signal(SIGXFSZ, SIG_IGN);
+  struct rlimit small = saved;
+  small.rlim_cur = 4;
+  ASSERT_EQ(::setrlimit(RLIMIT_FSIZE, &small), 0);
+  bool threw = false;
+  try {
+    writeFileAtomically(dir / "f", std::string(1000, 'n'));
+  } catch (const OutputError& e) {
+    threw = true;
+    EXPECT_NE(std::string(e.what()).find("write failed"), std::string::npos) << e.what();
+  }
+  ::setrlimit(RLIMIT_FSIZE, &saved);
+  std::signal(SIGXFSZ, old_handler);
+  EXPECT_TRUE(threw);
+  EXPECT_EQ(readWholeFile(dir / "f"), "old");
+  EXPECT_EQ(entries(dir.path()), 1u);
+}
+
+TEST(AtomicFile, FailedRenameRemovesTheTemporary) {
+  testing::TempDir dir;
+  std::filesystem::create_directories(dir / "target" / "inside");
+  EXPECT_THROW(writeFileAtomically(dir / "target", "data"), OutputError);
+  EXPECT_TRUE(std::filesystem::is_directory(dir / "target" / "inside"));
+  EXPECT_EQ(entries(dir.path()), 1u);
+  EXPECT_THROW(writeFileAtomically(dir / "missing" / "f", "x"), OutputError);
+}
+
+TEST(AtomicFile, ReadWholeFileErrorsNameThePath) {
+  testing::TempDir dir;
+  try {
+    readWholeFile(dir / "absent");
+    ADD_FAILURE();
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), (dir / "absent").string() + ": no such file or directory");
+  }
+  EXPECT_THROW(readWholeFile(dir.path()), InputError);
+  testing::writeBytes(dir / "empty", "");
+  EXPECT_EQ(readWholeFile(dir / "empty"), "");
+}
+
+}  // namespace
+}  // namespace objscan

@@ -1,0 +1,77 @@
+#include "objscan/core/intrinsics.h"
+
+#include <gtest/gtest.h>
+
+#include <limits>
+
+#include "objscan/core/error.h"
+#include "objscan/core/rgbd_frame.h"
+#include "test_support.h"
+
+namespace objscan {
+namespace {
+
+TEST(Intrinsics, XtionDefaultsAreValid) {
+  const Intrinsics in = Intrinsics::xtionDefault();
+  EXPECT_NO_THROW(in.validate());
+  EXPECT_DOUBLE_EQ(in.fx_px, 570.3);
+  EXPECT_EQ(in.width_px, 640);
+}
+
+TEST(Intrinsics, ValidateRejectsBadValues) {
+  auto bad = [](auto mutate) {
+    Intrinsics in;
+    mutate(in);
+    return in;
+  };
+  EXPECT_THROW(bad([](Intrinsics& i) { i.fx_px = 0; }).validate(), std::invalid_argument);
+  EXPECT_THROW(bad([](Intrinsics& i) { i.fy_px = std::numeric_limits<double>::quiet_NaN(); }).validate(), std::invalid_argument);
+  EXPECT_THROW(bad([](Intrinsics& i) { i.width_px = 0; }).validate(), std::invalid_argument);
+  EXPECT_THROW(bad([](Intrinsics& i) { i.height_px = 100000; }).validate(), std::invalid_argument);
+  EXPECT_THROW(bad([](Intrinsics& i) { i.cx_px = 700; }).validate(), std::invalid_argument);
+  EXPECT_THROW(bad([](Intrinsics& i) { i.cy_px = -1; }).validate(), std::invalid_argument);
+}
+
+TEST(Intrinsics, JsonRoundTripIsExact) {
+  testing::TempDir dir;
+  Intrinsics in;
+  in.fx_px = 520.9;
+  in.fy_px = 521.0;
+  in.cx_px = 325.1;
+  in.cy_px = 249.7;
+  writeIntrinsicsJson(dir / "i.json", in);
+  EXPECT_EQ(readIntrinsicsJson(dir / "i.json"), in);
+}
+
+TEST(Intrinsics, BadJsonFilesAreInputErrors) {
+  testing::TempDir dir;
+  testing::writeBytes(dir / "broken.json", "{\"fx\": 500,");
+  EXPECT_THROW(readIntrinsicsJson(dir / "broken.json"), InputError);
+  testing::writeBytes(dir / "missing.json", R"({"fx": 500, "fy": 500, "cx": 320, "cy": 240, "width": 640})");
+  try {
+    readIntrinsicsJson(dir / "missing.json");
+    ADD_FAILURE();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("\"height\""), std::string::npos) << e.what();
+  }
+  testing::writeBytes(dir / "outside.json", R"({"fx": 500, "fy": 500, "cx": 999, "cy": 240, "width": 640, "height": 480})");
+  EXPECT_THROW(readIntrinsicsJson(dir / "outside.json"), InputError);
+}
+
+TEST(RgbdFrame, ValidateChecksImageTypesAndSizes) {
+  RgbdFrame f;
+  f.depth_m = cv::Mat(480, 640, CV_32FC1, cv::Scalar(1.0f));
+  EXPECT_NO_THROW(f.validate());
+  f.color_rgb = cv::Mat(480, 640, CV_8UC3);
+  EXPECT_NO_THROW(f.validate());
+  f.color_rgb = cv::Mat(240, 320, CV_8UC3);
+  EXPECT_THROW(f.validate(), std::invalid_argument);
+  f.color_rgb.release();
+  f.depth_m = cv::Mat(480, 640, CV_16UC1);
+  EXPECT_THROW(f.validate(), std::invalid_argument);
+  f.depth_m = cv::Mat(480, 320, CV_32FC1);
+  EXPECT_THROW(f.validate(), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace objscan

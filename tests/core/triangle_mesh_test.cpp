@@ -1,0 +1,74 @@
+#include "objscan/core/triangle_mesh.h"
+
+#include <gtest/gtest.h>
+
+#include <limits>
+
+#include "test_support.h"
+
+namespace objscan {
+namespace {
+
+void expectInvalid(const TriangleMesh& m, const std::string& needle) {
+  try {
+    m.validate();
+    ADD_FAILURE() << "validate() accepted a mesh that should fail with: " << needle;
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+  }
+}
+
+TEST(TriangleMesh, ValidCubePasses) { EXPECT_NO_THROW(testing::makeCube().validate()); }
+
+TEST(TriangleMesh, ValidateRejectsNonFinitePositionsAndNormals) {
+  TriangleMesh m = testing::makeCube();
+  m.positions[3].y() = std::numeric_limits<float>::quiet_NaN();
+  expectInvalid(m, "vertex 3 has a non-finite position");
+  m = testing::makeCube();
+  m.normals.assign(8, Eigen::Vector3f::UnitZ());
+  m.normals[6].x() = std::numeric_limits<float>::infinity();
+  expectInvalid(m, "vertex 6 has a non-finite normal");
+}
+
+TEST(TriangleMesh, ValidateRejectsIndicesOutOfRange) {
+  TriangleMesh m = testing::makeCube();
+  m.triangles[4] = {0, 8, 1};
+  expectInvalid(m, "triangle 4 refers to vertex 8, but the mesh has 8 vertices");
+  m.triangles[4] = {-1, 2, 1};
+  expectInvalid(m, "refers to vertex -1");
+}
+
+TEST(TriangleMesh, ValidateRejectsDegenerateTriangles) {
+  TriangleMesh m = testing::makeCube();
+  m.triangles[2] = {5, 1, 5};
+  expectInvalid(m, "triangle 2 is degenerate");
+}
+
+TEST(TriangleMesh, ValidateRejectsAttributeCountMismatch) {
+  TriangleMesh m = testing::makeCube();
+  m.normals.assign(7, Eigen::Vector3f::UnitZ());
+  expectInvalid(m, "7 normals for 8 vertices");
+  m = testing::makeCube();
+  m.colors.assign(9, Rgb8(1, 2, 3));
+  expectInvalid(m, "9 colours for 8 vertices");
+}
+
+TEST(TriangleMesh, CubeBoundsAndAreaAreExact) {
+  const TriangleMesh m = testing::makeCube(2.0f);
+  EXPECT_EQ(m.bounds().min(), Eigen::Vector3f(-1, -1, -1));
+  EXPECT_EQ(m.bounds().max(), Eigen::Vector3f(1, 1, 1));
+  EXPECT_DOUBLE_EQ(m.surfaceArea(), 24.0);  // 6 faces of 2 x 2 m
+  EXPECT_TRUE(TriangleMesh{}.bounds().isEmpty());
+}
+
+TEST(TriangleMesh, CubeTrianglesFaceOutwards) {
+  const TriangleMesh m = testing::makeCube();
+  for (const auto& t : m.triangles) {
+    const Eigen::Vector3f a = m.positions[t[0]], b = m.positions[t[1]], c = m.positions[t[2]];
+    const Eigen::Vector3f normal = (b - a).cross(c - a);
+    EXPECT_GT(normal.dot((a + b + c) / 3.0f), 0.0f) << t.transpose();
+  }
+}
+
+}  // namespace
+}  // namespace objscan

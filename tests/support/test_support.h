@@ -1,0 +1,51 @@
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "objscan/core/triangle_mesh.h"
+
+namespace objscan::testing {
+
+/// A fresh directory under the system temp folder, removed with everything in it on destruction.
+class TempDir {
+ public:
+  TempDir();
+  ~TempDir();
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  const std::filesystem::path& path() const { return path_; }
+  std::filesystem::path operator/(const std::string& name) const { return path_ / name; }
+
+ private:
+  std::filesystem::path path_;
+};
+
+void writeBytes(const std::filesystem::path& path, const std::string& bytes);
+std::string readBytes(const std::filesystem::path& path);
+
+/// An axis-aligned cube of side `side_m` centred at the origin: 8 vertices, 12 outward triangles.
+TriangleMesh makeCube(float side_m = 1.0f);
+
+/// A mesh with random positions (including awkward floats: tiny, huge, negative zero,
+/// subnormal), unit normals, colours and random non-degenerate triangles; fixed seed.
+TriangleMesh makeRandomMesh(std::uint32_t seed, std::size_t vertices, std::size_t triangles,
+                            bool with_normals = true, bool with_colors = true);
+
+/// True when both meshes hold bit-identical floats (so -0.0 != 0.0) and equal everything else.
+bool bitwiseEqual(const TriangleMesh& a, const TriangleMesh& b);
+
+/// Runs a program with arguments, stdout and stderr captured separately, no terminal attached.
+struct ProcessResult {
+  int exit_code = -1;  ///< exit status, or 128 + signal number when killed by a signal
+  std::string out;
+  std::string err;
+};
+ProcessResult runProcess(const std::vector<std::string>& argv);
+
+/// Lines of `text` without their '\n' (a final line without '\n' counts too).
+std::vector<std::string> lines(const std::string& text);
+
+}  // namespace objscan::testing
