@@ -76,7 +76,7 @@ TEST_P(PlyRoundTrip, PointCloudWithoutFacesReadsAsMeshWithoutTriangles) {
 INSTANTIATE_TEST_SUITE_P(AllFormats, PlyRoundTrip,
                          ::testing::Values(PlyFormat::kAscii, PlyFormat::kBinaryLittleEndian,
                                            PlyFormat::kBinaryBigEndian),
-                         [](const ::testing::TestParamInfo<PlyFormat>& info) { return std::string(toString(info.param)); });
+                         [](const ::testing::TestParamInfo<PlyFormat>& p) { return std::string(toString(p.param)); });
 
 TEST(PlyIo, ReadsPropertiesInAnyOrderAndIgnoresExtras) {
   TempDir dir;
