@@ -21,7 +21,9 @@ namespace {
 /// A mesh larger than this in any direction is probably not in metres.
 constexpr float kSuspiciousExtent_m = 50.0f;
 
-void row(const char* key, const std::string& value) { std::printf("%-13s %s\n", key, value.c_str()); }
+void row(const char* key, const std::string& value) {
+  std::printf("%-13s %s\n", key, value.c_str());
+}
 
 std::string fmt(const char* format, auto... args) {
   char buf[512];
@@ -48,7 +50,8 @@ void describeBounds(const Eigen::AlignedBox3f& box) {
   const Eigen::Vector3f e = box.sizes();
   row("extent", fmt("%.4f x %.4f x %.4f m", e.x(), e.y(), e.z()));
   if (e.maxCoeff() > kSuspiciousExtent_m) {
-    row("note", "larger than 50 m: objscan expects metres; is this file in millimetres or centimetres?");
+    row("note",
+        "larger than 50 m: objscan expects metres; is this file in millimetres or centimetres?");
   }
 }
 
@@ -57,9 +60,10 @@ void describeMesh(const fs::path& path) {
   const TriangleMesh mesh = readPly(path, &report);
   if (mesh.empty()) throw InputError(path, "contains no vertices (an empty mesh)");
   row("file", path.string());
-  row("type", fmt("mesh (PLY %s, %s)", toString(report.header.format), bytesText(report.file_bytes).c_str()));
-  row("vertices", fmt("%zu (normals: %s, colours: %s)", mesh.positions.size(), mesh.hasNormals() ? "yes" : "no",
-                      mesh.hasColors() ? "yes" : "no"));
+  row("type", fmt("mesh (PLY %s, %s)", toString(report.header.format),
+                  bytesText(report.file_bytes).c_str()));
+  row("vertices", fmt("%zu (normals: %s, colours: %s)", mesh.positions.size(),
+                      mesh.hasNormals() ? "yes" : "no", mesh.hasColors() ? "yes" : "no"));
   if (report.faces == 0) {
     row("faces", "0 (a point cloud)");
   } else if (report.faces == mesh.triangles.size()) {
@@ -80,9 +84,10 @@ void describeTrajectory(const fs::path& path) {
   row("type", "trajectory (TUM format: t tx ty tz qx qy qz qw, camera-to-world)");
   row("poses", std::to_string(trajectory.size()));
   const double duration = trajectory.durationS();
-  row("time", fmt("%.6f .. %.6f s (%.2f s%s)", trajectory.poses.front().stamp_s, trajectory.poses.back().stamp_s,
-                  duration,
-                  duration > 0 ? fmt(", %.1f Hz mean", (trajectory.size() - 1) / duration).c_str() : ""));
+  row("time",
+      fmt("%.6f .. %.6f s (%.2f s%s)", trajectory.poses.front().stamp_s,
+          trajectory.poses.back().stamp_s, duration,
+          duration > 0 ? fmt(", %.1f Hz mean", (trajectory.size() - 1) / duration).c_str() : ""));
   row("path", fmt("%.3f m travelled", trajectory.pathLengthM()));
   Eigen::AlignedBox3f box;
   for (const auto& p : trajectory.poses) box.extend(p.T_W_C.translation());
@@ -107,7 +112,8 @@ struct DepthSummary {
         ++valid;
         min_m = std::min(min_m, d);
         max_m = std::max(max_m, d);
-        ++histogram_mm[std::min<std::size_t>(static_cast<std::size_t>(d * 1000.0f), histogram_mm.size() - 1)];
+        ++histogram_mm[std::min<std::size_t>(static_cast<std::size_t>(d * 1000.0f),
+                                             histogram_mm.size() - 1)];
       }
     }
   }
@@ -127,18 +133,21 @@ void describeTumFolder(const fs::path& path) {
   row("file", path.string());
   row("type", "recording (TUM RGB-D folder)");
   row("frames", fmt("%zu (paired by %s)", folder.size(), folder.associationSource().c_str()));
-  const double duration = folder.frames().back().depth_stamp_s - folder.frames().front().depth_stamp_s;
+  const double duration =
+      folder.frames().back().depth_stamp_s - folder.frames().front().depth_stamp_s;
   if (folder.size() > 1 && duration > 0) {
     row("time", fmt("%.2f s, %.1f Hz mean", duration, (folder.size() - 1) / duration));
   }
   const Intrinsics& in = folder.intrinsics();
-  row("intrinsics", fmt("fx %.1f fy %.1f cx %.1f cy %.1f, %dx%d px (%s)", in.fx_px, in.fy_px, in.cx_px,
-                        in.cy_px, in.width_px, in.height_px,
-                        folder.intrinsicsFromFile() ? "intrinsics.json" : "Xtion defaults: no intrinsics.json"));
+  row("intrinsics",
+      fmt("fx %.1f fy %.1f cx %.1f cy %.1f, %dx%d px (%s)", in.fx_px, in.fy_px, in.cx_px, in.cy_px,
+          in.width_px, in.height_px,
+          folder.intrinsicsFromFile() ? "intrinsics.json" : "Xtion defaults: no intrinsics.json"));
   row("depth units", fmt("raw value / %g = metres", folder.depthFactor()));
   if (folder.groundTruth()) {
-    row("ground truth", fmt("%zu poses (%s), %.3f m path", folder.groundTruth()->size(),
-                            folder.groundTruthSource().c_str(), folder.groundTruth()->pathLengthM()));
+    row("ground truth",
+        fmt("%zu poses (%s), %.3f m path", folder.groundTruth()->size(),
+            folder.groundTruthSource().c_str(), folder.groundTruth()->pathLengthM()));
   } else {
     row("ground truth", "none");
   }
@@ -158,9 +167,10 @@ void describeTumFolder(const fs::path& path) {
   if (summary.valid == 0) {
     row("depth", "no valid readings in any frame");
   } else {
-    row("depth", fmt("%.1f %% of pixels valid, %.3f .. %.3f m, median %.3f m",
-                     100.0 * static_cast<double>(summary.valid) / static_cast<double>(summary.pixels),
-                     summary.min_m, summary.max_m, summary.medianM()));
+    row("depth",
+        fmt("%.1f %% of pixels valid, %.3f .. %.3f m, median %.3f m",
+            100.0 * static_cast<double>(summary.valid) / static_cast<double>(summary.pixels),
+            summary.min_m, summary.max_m, summary.medianM()));
   }
 }
 
@@ -176,12 +186,14 @@ bool startsWith(const fs::path& path, std::string_view magic) {
 void runInfo(const fs::path& path) {
   std::error_code ec;
   const fs::file_status status = fs::status(path, ec);
-  if (status.type() == fs::file_type::not_found) throw InputError(path, "no such file or directory");
+  if (status.type() == fs::file_type::not_found)
+    throw InputError(path, "no such file or directory");
   if (ec) throw InputError(path, "cannot access: " + ec.message());
   if (status.type() == fs::file_type::directory) {
     if (!capture::TumFolder::looksLikeTumFolder(path)) {
-      throw InputError(path, "is a directory, not a mesh, trajectory or TUM-format recording "
-                             "(a recording folder has depth.txt or associations.txt)");
+      throw InputError(path,
+                       "is a directory, not a mesh, trajectory or TUM-format recording "
+                       "(a recording folder has depth.txt or associations.txt)");
     }
     describeTumFolder(path);
     return;
@@ -190,16 +202,19 @@ void runInfo(const fs::path& path) {
   if (fs::file_size(path) == 0) throw InputError(path, "the file is empty");
 
   std::string ext = path.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return std::tolower(c); });
   if (startsWith(path, "ply") || ext == ".ply") {
     describeMesh(path);
   } else if (ext == ".oni") {
-    throw InputError(path, "reading .oni recordings is not built yet (Step C brings OpenNI2 replay)");
+    throw InputError(path,
+                     "reading .oni recordings is not built yet (Step C brings OpenNI2 replay)");
   } else if (ext == ".txt") {
     describeTrajectory(path);
   } else {
-    throw InputError(path, "unknown format: expected a .ply mesh, a .txt TUM trajectory, a .oni "
-                           "recording or a TUM-format recording folder");
+    throw InputError(path,
+                     "unknown format: expected a .ply mesh, a .txt TUM trajectory, a .oni "
+                     "recording or a TUM-format recording folder");
   }
 }
 

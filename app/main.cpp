@@ -47,8 +47,9 @@ void printError(const std::string& message) {
 }
 
 int run(int argc, char** argv) {
-  CLI::App app{"objscan: turn an RGB-D capture into a fused mesh and a ranked list of the objects in it.",
-               "objscan"};
+  CLI::App app{
+      "objscan: turn an RGB-D capture into a fused mesh and a ranked list of the objects in it.",
+      "objscan"};
   bool version = false;
   app.add_flag("--version", version, "Print the version and exit");
   app.require_subcommand(0, 1);
@@ -56,18 +57,23 @@ int run(int argc, char** argv) {
   bool verbose = false;
   bool quiet = false;
   auto* verbose_flag = app.add_flag("-v,--verbose", verbose, "Log details to stderr");
-  app.add_flag("-q,--quiet", quiet, "Log only errors to stderr (no progress)")->excludes(verbose_flag);
-  app.footer("Exit codes: 0 success, 1 runtime failure, 2 bad usage or bad input.\n"
-             "Run 'objscan <command> --help' for a command's options.\n");
+  app.add_flag("-q,--quiet", quiet, "Log only errors to stderr (no progress)")
+      ->excludes(verbose_flag);
+  app.footer(
+      "Exit codes: 0 success, 1 runtime failure, 2 bad usage or bad input.\n"
+      "Run 'objscan <command> --help' for a command's options.\n");
 
   std::string info_path;
-  CLI::App* info = app.add_subcommand("info", "Print what a mesh (.ply), trajectory (TUM .txt) or recording holds");
-  info->add_option("path", info_path, "A .ply mesh, a TUM trajectory .txt, or a TUM-format recording folder")
+  CLI::App* info = app.add_subcommand(
+      "info", "Print what a mesh (.ply), trajectory (TUM .txt) or recording holds");
+  info->add_option("path", info_path,
+                   "A .ply mesh, a TUM trajectory .txt, or a TUM-format recording folder")
       ->required();
 
   std::vector<std::pair<CLI::App*, const Planned*>> planned;
   for (const Planned& p : kPlanned) {
-    CLI::App* sub = app.add_subcommand(p.name, std::string(p.summary) + " [not built yet: " + p.step + "]");
+    CLI::App* sub =
+        app.add_subcommand(p.name, std::string(p.summary) + " [not built yet: " + p.step + "]");
     sub->allow_extras();
     sub->fallthrough(false);  // whatever follows is the unbuilt command's, not objscan's
     planned.emplace_back(sub, &p);
@@ -99,7 +105,8 @@ int run(int argc, char** argv) {
 
   for (const auto& [sub, p] : planned) {
     if (sub->parsed()) {
-      printError(std::string("'") + p->name + "' is not built yet (it arrives with " + p->step + ")");
+      printError(std::string("'") + p->name + "' is not built yet (it arrives with " + p->step +
+                 ")");
       return kExitBadInput;
     }
   }

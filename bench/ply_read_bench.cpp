@@ -3,8 +3,8 @@
 //
 // The input is a torus mesh at the paper's scene size (Karpathy et al. 2013: ~200k vertices,
 // ~400k faces) with normals and colours, written once as binary and once as ASCII PLY. Each reader
-// loads it into the typed arrays a pipeline needs (positions, normals, colours, triangles), so PCL's
-// PCLPointCloud2 -> PointCloud conversion is part of its time. Medians of --repeat runs.
+// loads it into the typed arrays a pipeline needs (positions, normals, colours, triangles), so
+// PCL's PCLPointCloud2 -> PointCloud conversion is part of its time. Medians of --repeat runs.
 //
 // Then a robustness probe: each reader gets truncated copies of both files (a forked child per
 // attempt, so a crash is seen rather than taken down with it) and the result is printed: a clean
@@ -102,14 +102,17 @@ objscan::TriangleMesh makeTorus(std::size_t faces) {
   const float big_r = 0.3f, small_r = 0.1f;
   objscan::TriangleMesh m;
   for (int i = 0; i < rings; ++i) {
-    const float u = 2.0f * std::numbers::pi_v<float> * static_cast<float>(i) / static_cast<float>(rings);
+    const float u =
+        2.0f * std::numbers::pi_v<float> * static_cast<float>(i) / static_cast<float>(rings);
     for (int j = 0; j < segments; ++j) {
-      const float v = 2.0f * std::numbers::pi_v<float> * static_cast<float>(j) / static_cast<float>(segments);
+      const float v =
+          2.0f * std::numbers::pi_v<float> * static_cast<float>(j) / static_cast<float>(segments);
       const Eigen::Vector3f n(std::cos(u) * std::cos(v), std::sin(u) * std::cos(v), std::sin(v));
       const Eigen::Vector3f c(big_r * std::cos(u), big_r * std::sin(u), 0.0f);
       m.positions.push_back(c + small_r * n);
       m.normals.push_back(n);
-      m.colors.emplace_back(static_cast<std::uint8_t>(255 * i / rings), static_cast<std::uint8_t>(255 * j / segments), 128);
+      m.colors.emplace_back(static_cast<std::uint8_t>(255 * i / rings),
+                            static_cast<std::uint8_t>(255 * j / segments), 128);
     }
   }
   auto id = [&](int i, int j) { return (i % rings) * segments + (j % segments); };
@@ -127,7 +130,8 @@ double medianMs(const Reader& reader, const std::string& path, int repeat, Loade
   for (int r = 0; r < repeat; ++r) {
     const auto t0 = std::chrono::steady_clock::now();
     loaded = reader.read(path);
-    ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    ms.push_back(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
   }
   std::sort(ms.begin(), ms.end());
   return ms[ms.size() / 2];
@@ -148,7 +152,8 @@ std::string probe(const Reader& reader, const std::string& path) {
   }
   int status = 0;
   ::waitpid(pid, &status, 0);
-  if (WIFSIGNALED(status)) return std::string("CRASH (signal ") + std::to_string(WTERMSIG(status)) + ")";
+  if (WIFSIGNALED(status))
+    return std::string("CRASH (signal ") + std::to_string(WTERMSIG(status)) + ")";
   if (WEXITSTATUS(status) == 10) return "error reported";
   std::size_t v = 0, t = 0;
   std::ifstream(path + ".result") >> v >> t;
@@ -162,8 +167,10 @@ int main(int argc, char** argv) {
   int repeat = 5;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string flag = argv[i];
-    if (flag == "--faces") faces = std::stoul(argv[i + 1]);
-    else if (flag == "--repeat") repeat = std::max(1, std::atoi(argv[i + 1]));
+    if (flag == "--faces")
+      faces = std::stoul(argv[i + 1]);
+    else if (flag == "--repeat")
+      repeat = std::max(1, std::atoi(argv[i + 1]));
     else {
       std::fprintf(stderr, "usage: ply_read_bench [--faces N] [--repeat R]\n");
       return 2;
@@ -188,8 +195,9 @@ int main(int argc, char** argv) {
       {"Open3D ReadTriangleMesh (rply)", readOpen3d},
   };
 
-  std::printf("PLY read: %zu vertices, %zu triangles, normals + colours; median of %d runs, one thread\n",
-              torus.positions.size(), torus.triangles.size(), repeat);
+  std::printf(
+      "PLY read: %zu vertices, %zu triangles, normals + colours; median of %d runs, one thread\n",
+      torus.positions.size(), torus.triangles.size(), repeat);
   std::printf("%-32s %-7s %10s %9s  %s\n", "reader", "file", "ms", "x objscan", "result");
   for (const auto& [label, path] : {std::pair{"binary", bin}, std::pair{"ascii", ascii}}) {
     std::printf("  (%s: %.1f MB)\n", label, static_cast<double>(fs::file_size(path)) / 1e6);
@@ -206,8 +214,14 @@ int main(int argc, char** argv) {
   }
 
   std::printf("\nTruncated files (what each reader does with a file cut short):\n");
-  const std::string bytes_bin = [&] { std::ifstream in(bin, std::ios::binary); return std::string(std::istreambuf_iterator<char>(in), {}); }();
-  const std::string bytes_ascii = [&] { std::ifstream in(ascii, std::ios::binary); return std::string(std::istreambuf_iterator<char>(in), {}); }();
+  const std::string bytes_bin = [&] {
+    std::ifstream in(bin, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  }();
+  const std::string bytes_ascii = [&] {
+    std::ifstream in(ascii, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  }();
   struct Cut {
     const char* label;
     const std::string* bytes;
@@ -219,12 +233,15 @@ int main(int argc, char** argv) {
                       {"ascii, last 7 bytes missing", &bytes_ascii, -7},
                       {"ascii, cut inside the last number (2 bytes missing)", &bytes_ascii, -2}};
   for (const Cut& cut : cuts) {
-    const std::size_t keep = cut.keep > 0 ? static_cast<std::size_t>(static_cast<double>(cut.bytes->size()) * cut.keep)
-                                          : cut.bytes->size() - static_cast<std::size_t>(-cut.keep);
+    const std::size_t keep =
+        cut.keep > 0 ? static_cast<std::size_t>(static_cast<double>(cut.bytes->size()) * cut.keep)
+                     : cut.bytes->size() - static_cast<std::size_t>(-cut.keep);
     const std::string path = (dir / "cut.ply").string();
-    std::ofstream(path, std::ios::binary).write(cut.bytes->data(), static_cast<std::streamsize>(keep));
+    std::ofstream(path, std::ios::binary)
+        .write(cut.bytes->data(), static_cast<std::streamsize>(keep));
     std::printf("  %s:\n", cut.label);
-    for (const Reader& reader : readers) std::printf("    %-32s %s\n", reader.name, probe(reader, path).c_str());
+    for (const Reader& reader : readers)
+      std::printf("    %-32s %s\n", reader.name, probe(reader, path).c_str());
   }
   fs::remove_all(dir);
   return 0;

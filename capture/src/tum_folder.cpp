@@ -54,7 +54,8 @@ double parseStamp(const fs::path& file, const IndexLine& line, std::size_t field
     used = 0;
   }
   if (used != s.size() || !std::isfinite(v)) {
-    throw InputError(file, "line " + std::to_string(line.line_no) + ": '" + s + "' is not a time stamp");
+    throw InputError(file,
+                     "line " + std::to_string(line.line_no) + ": '" + s + "' is not a time stamp");
   }
   return v;
 }
@@ -64,7 +65,8 @@ std::vector<std::pair<double, fs::path>> readStampedFiles(const fs::path& file) 
   std::vector<std::pair<double, fs::path>> entries;
   for (const IndexLine& line : readIndex(file)) {
     if (line.fields.size() < 2) {
-      throw InputError(file, "line " + std::to_string(line.line_no) + ": expected 'timestamp filename'");
+      throw InputError(file,
+                       "line " + std::to_string(line.line_no) + ": expected 'timestamp filename'");
     }
     entries.emplace_back(parseStamp(file, line, 0), line.fields[1]);
   }
@@ -84,7 +86,9 @@ TumFolder::TumFolder(const fs::path& dir) : dir_(dir) {
   if (!fs::exists(dir)) throw InputError(dir, "no such file or directory");
   if (!fs::is_directory(dir)) throw InputError(dir, "is not a folder");
   if (!looksLikeTumFolder(dir)) {
-    throw InputError(dir, "is a folder but not a TUM-format recording (it has no depth.txt, associations.txt or associate.txt)");
+    throw InputError(dir,
+                     "is a folder but not a TUM-format recording (it has no depth.txt, "
+                     "associations.txt or associate.txt)");
   }
 
   if (fs::is_regular_file(dir / "associations.txt")) {
@@ -111,7 +115,8 @@ TumFolder::TumFolder(const fs::path& dir) : dir_(dir) {
     const auto j = nlohmann::json::parse(readWholeFile(intrinsics_file));
     if (j.contains("depth_factor")) {
       if (!j["depth_factor"].is_number() || !(j["depth_factor"].get<double>() > 0.0)) {
-        throw InputError(intrinsics_file, "\"depth_factor\" must be a positive number (raw depth units per metre)");
+        throw InputError(intrinsics_file,
+                         "\"depth_factor\" must be a positive number (raw depth units per metre)");
       }
       depth_factor_ = j["depth_factor"].get<double>();
     }
@@ -130,17 +135,21 @@ void TumFolder::readAssociations(const fs::path& file) {
   for (const IndexLine& line : lines) {
     const std::string where = "line " + std::to_string(line.line_no) + ": ";
     if (line.fields.size() != 4 && line.fields.size() != 12) {
-      throw InputError(file, where + "expected 'rgb_t rgb_file depth_t depth_file' (4 fields, or 12 with a ground-truth pose), found " +
+      throw InputError(file, where +
+                                 "expected 'rgb_t rgb_file depth_t depth_file' (4 fields, or 12 "
+                                 "with a ground-truth pose), found " +
                                  std::to_string(line.fields.size()));
     }
     if (line.fields.size() != lines.front().fields.size()) {
-      throw InputError(file, where + "has " + std::to_string(line.fields.size()) + " fields but line " +
-                                 std::to_string(lines.front().line_no) + " has " +
-                                 std::to_string(lines.front().fields.size()) + "; every line needs the same columns");
+      throw InputError(file, where + "has " + std::to_string(line.fields.size()) +
+                                 " fields but line " + std::to_string(lines.front().line_no) +
+                                 " has " + std::to_string(lines.front().fields.size()) +
+                                 "; every line needs the same columns");
     }
     TumFrameFiles f;
     // associate.py writes its two inputs in the order given; tell them apart by folder name.
-    const bool depth_first = line.fields[1].rfind("depth", 0) == 0 && line.fields[3].rfind("rgb", 0) == 0;
+    const bool depth_first =
+        line.fields[1].rfind("depth", 0) == 0 && line.fields[3].rfind("rgb", 0) == 0;
     const std::size_t rgb_col = depth_first ? 2 : 0;
     const std::size_t depth_col = depth_first ? 0 : 2;
     f.rgb_stamp_s = parseStamp(file, line, rgb_col);
@@ -155,8 +164,9 @@ void TumFolder::readAssociations(const fs::path& file) {
       if (std::abs(q.norm() - 1.0) > 0.01) {
         throw InputError(file, where + "ground-truth quaternion does not have norm 1");
       }
-      gt.poses.push_back({v[0], poseFromTranslationQuaternion(Eigen::Vector3d(v[1], v[2], v[3]).cast<float>(),
-                                                              q.cast<float>())});
+      gt.poses.push_back(
+          {v[0], poseFromTranslationQuaternion(Eigen::Vector3d(v[1], v[2], v[3]).cast<float>(),
+                                               q.cast<float>())});
     }
   }
   if (!gt.empty()) {
@@ -169,7 +179,8 @@ void TumFolder::associateByTime() {
   const auto depth = readStampedFiles(dir_ / "depth.txt");
   std::vector<std::pair<double, fs::path>> rgb;
   if (fs::is_regular_file(dir_ / "rgb.txt")) rgb = readStampedFiles(dir_ / "rgb.txt");
-  association_source_ = rgb.empty() ? "depth.txt (no colour)" : "depth.txt + rgb.txt (nearest time stamps)";
+  association_source_ =
+      rgb.empty() ? "depth.txt (no colour)" : "depth.txt + rgb.txt (nearest time stamps)";
 
   // Greedy one-to-one matching by smallest time difference, as TUM's associate.py does.
   struct Candidate {
@@ -182,10 +193,12 @@ void TumFolder::associateByTime() {
                                      [](const auto& e, double t) { return e.first < t; });
     for (auto r = it == rgb.begin() ? it : it - 1; r != rgb.end() && r <= it; ++r) {
       const double gap = std::abs(r->first - depth[d].first);
-      if (gap <= kMaxAssociationGap_s) candidates.push_back({gap, d, static_cast<std::size_t>(r - rgb.begin())});
+      if (gap <= kMaxAssociationGap_s)
+        candidates.push_back({gap, d, static_cast<std::size_t>(r - rgb.begin())});
     }
   }
-  std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) { return a.gap_s < b.gap_s; });
+  std::sort(candidates.begin(), candidates.end(),
+            [](const Candidate& a, const Candidate& b) { return a.gap_s < b.gap_s; });
   std::vector<long> rgb_of_depth(depth.size(), -1);
   std::vector<bool> rgb_used(rgb.size(), false);
   for (const Candidate& c : candidates) {
@@ -194,7 +207,8 @@ void TumFolder::associateByTime() {
     rgb_used[c.r] = true;
   }
   for (std::size_t d = 0; d < depth.size(); ++d) {
-    if (!rgb.empty() && rgb_of_depth[d] < 0) continue;  // no colour close enough: skip, as associate.py does
+    if (!rgb.empty() && rgb_of_depth[d] < 0)
+      continue;  // no colour close enough: skip, as associate.py does
     TumFrameFiles f;
     f.depth_stamp_s = depth[d].first;
     f.depth = depth[d].second;
@@ -210,16 +224,19 @@ RgbdFrame TumFolder::load(std::size_t i) const {
   const TumFrameFiles& f = frames_.at(i);
   const fs::path depth_path = dir_ / f.depth;
   const cv::Mat raw = cv::imread(depth_path.string(), cv::IMREAD_UNCHANGED);
-  if (raw.empty()) throw InputError(depth_path, "cannot be decoded as an image (truncated or not a PNG?)");
+  if (raw.empty())
+    throw InputError(depth_path, "cannot be decoded as an image (truncated or not a PNG?)");
   if (raw.type() != CV_16UC1) {
     throw InputError(depth_path, "depth must be a single-channel 16-bit PNG (value / " +
-                                     std::to_string(static_cast<int>(depth_factor_)) + " = metres)");
+                                     std::to_string(static_cast<int>(depth_factor_)) +
+                                     " = metres)");
   }
   if (raw.cols != intrinsics_.width_px || raw.rows != intrinsics_.height_px) {
-    throw InputError(depth_path, "image is " + std::to_string(raw.cols) + "x" + std::to_string(raw.rows) +
-                                     " but the intrinsics are for " + std::to_string(intrinsics_.width_px) +
-                                     "x" + std::to_string(intrinsics_.height_px) +
-                                     (intrinsics_from_file_ ? "" : " (add an intrinsics.json to the folder)"));
+    throw InputError(depth_path,
+                     "image is " + std::to_string(raw.cols) + "x" + std::to_string(raw.rows) +
+                         " but the intrinsics are for " + std::to_string(intrinsics_.width_px) +
+                         "x" + std::to_string(intrinsics_.height_px) +
+                         (intrinsics_from_file_ ? "" : " (add an intrinsics.json to the folder)"));
   }
   RgbdFrame frame;
   frame.index = static_cast<std::int64_t>(i);
@@ -230,8 +247,10 @@ RgbdFrame TumFolder::load(std::size_t i) const {
   if (!f.rgb.empty()) {
     const fs::path rgb_path = dir_ / f.rgb;
     const cv::Mat bgr = cv::imread(rgb_path.string(), cv::IMREAD_COLOR);
-    if (bgr.empty()) throw InputError(rgb_path, "cannot be decoded as an image (truncated or not a PNG/JPEG?)");
-    if (bgr.size() != raw.size()) throw InputError(rgb_path, "colour and depth images differ in size");
+    if (bgr.empty())
+      throw InputError(rgb_path, "cannot be decoded as an image (truncated or not a PNG/JPEG?)");
+    if (bgr.size() != raw.size())
+      throw InputError(rgb_path, "colour and depth images differ in size");
     cv::cvtColor(bgr, frame.color_rgb, cv::COLOR_BGR2RGB);
   }
   return frame;

@@ -86,7 +86,8 @@ std::string readWholeFile(const fs::path& path) {
   bytes.resize(static_cast<size_t>(size));
   in.seekg(0, std::ios::beg);
   in.read(bytes.data(), size);
-  if (in.gcount() != size) throw InputError(path, "read failed after " + std::to_string(in.gcount()) + " bytes");
+  if (in.gcount() != size)
+    throw InputError(path, "read failed after " + std::to_string(in.gcount()) + " bytes");
   return bytes;
 }
 

@@ -18,8 +18,9 @@ constexpr int kMaxSide_px = 16384;
 void Intrinsics::validate() const {
   auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
   if (!positive(fx_px) || !positive(fy_px)) {
-    throw std::invalid_argument("intrinsics: focal lengths fx and fy must be finite and positive (got fx = " +
-                                std::to_string(fx_px) + ", fy = " + std::to_string(fy_px) + ")");
+    throw std::invalid_argument(
+        "intrinsics: focal lengths fx and fy must be finite and positive (got fx = " +
+        std::to_string(fx_px) + ", fy = " + std::to_string(fy_px) + ")");
   }
   if (width_px < 1 || height_px < 1 || width_px > kMaxSide_px || height_px > kMaxSide_px) {
     throw std::invalid_argument("intrinsics: image size must be 1.." + std::to_string(kMaxSide_px) +
@@ -43,10 +44,12 @@ Intrinsics readIntrinsicsJson(const std::filesystem::path& path) {
   } catch (const nlohmann::json::parse_error& e) {
     throw InputError(path, std::string("not valid JSON: ") + e.what());
   }
-  if (!j.is_object()) throw InputError(path, "expected a JSON object with fx, fy, cx, cy, width, height");
+  if (!j.is_object())
+    throw InputError(path, "expected a JSON object with fx, fy, cx, cy, width, height");
   auto number = [&](const char* key) {
     if (!j.contains(key) || !j[key].is_number()) {
-      throw InputError(path, std::string("missing number \"") + key + "\" (need fx, fy, cx, cy, width, height)");
+      throw InputError(
+          path, std::string("missing number \"") + key + "\" (need fx, fy, cx, cy, width, height)");
     }
     return j[key].get<double>();
   };
@@ -73,9 +76,8 @@ Intrinsics readIntrinsicsJson(const std::filesystem::path& path) {
 }
 
 void writeIntrinsicsJson(const std::filesystem::path& path, const Intrinsics& in) {
-  nlohmann::json j = {{"fx", in.fx_px},         {"fy", in.fy_px},
-                      {"cx", in.cx_px},         {"cy", in.cy_px},
-                      {"width", in.width_px},   {"height", in.height_px}};
+  nlohmann::json j = {{"fx", in.fx_px}, {"fy", in.fy_px},       {"cx", in.cx_px},
+                      {"cy", in.cy_px}, {"width", in.width_px}, {"height", in.height_px}};
   writeFileAtomically(path, j.dump(2) + "\n");
 }
 

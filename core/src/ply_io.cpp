@@ -49,7 +49,16 @@ namespace {
 // ---------------------------------------------------------------------------------------------
 // Types and header
 
-enum class Type : std::uint8_t { kInt8, kUint8, kInt16, kUint16, kInt32, kUint32, kFloat32, kFloat64 };
+enum class Type : std::uint8_t {
+  kInt8,
+  kUint8,
+  kInt16,
+  kUint16,
+  kInt32,
+  kUint32,
+  kFloat32,
+  kFloat64
+};
 
 bool parseType(std::string_view name, Type& type) {
   struct Entry {
@@ -94,7 +103,19 @@ std::size_t sizeOf(Type t) {
 bool isInteger(Type t) { return t != Type::kFloat32 && t != Type::kFloat64; }
 
 /// Where a property's values go.
-enum class Slot : std::uint8_t { kIgnore, kX, kY, kZ, kNx, kNy, kNz, kRed, kGreen, kBlue, kIndices };
+enum class Slot : std::uint8_t {
+  kIgnore,
+  kX,
+  kY,
+  kZ,
+  kNx,
+  kNy,
+  kNz,
+  kRed,
+  kGreen,
+  kBlue,
+  kIndices
+};
 
 struct Prop {
   std::string name;
@@ -123,8 +144,10 @@ struct ParseError {
 };
 
 std::string_view trim(std::string_view s) {
-  while (!s.empty() && (s.front() == ' ' || s.front() == '\t' || s.front() == '\r')) s.remove_prefix(1);
-  while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r')) s.remove_suffix(1);
+  while (!s.empty() && (s.front() == ' ' || s.front() == '\t' || s.front() == '\r'))
+    s.remove_prefix(1);
+  while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r'))
+    s.remove_suffix(1);
   return s;
 }
 
@@ -170,7 +193,9 @@ ParsedHeader parseHeader(std::string_view bytes) {
       const std::size_t start = line.find(key) + key.size();
       header.comments.emplace_back(trim(line.substr(start)));
     } else if (key == "format") {
-      if (w.size() != 3) throw ParseError{where + "expected 'format <ascii|binary_little_endian|binary_big_endian> 1.0'"};
+      if (w.size() != 3)
+        throw ParseError{where +
+                         "expected 'format <ascii|binary_little_endian|binary_big_endian> 1.0'"};
       if (w[1] == "ascii") {
         header.format = PlyFormat::kAscii;
       } else if (w[1] == "binary_little_endian") {
@@ -180,13 +205,15 @@ ParsedHeader parseHeader(std::string_view bytes) {
       } else {
         throw ParseError{where + "unknown format '" + std::string(w[1]) + "'"};
       }
-      if (w[2] != "1.0" && w[2] != "1") throw ParseError{where + "unsupported PLY version '" + std::string(w[2]) + "'"};
+      if (w[2] != "1.0" && w[2] != "1")
+        throw ParseError{where + "unsupported PLY version '" + std::string(w[2]) + "'"};
       have_format = true;
     } else if (key == "element") {
       std::uint64_t count = 0;
       if (w.size() != 3 ||
           std::from_chars(w[2].data(), w[2].data() + w[2].size(), count).ec != std::errc() ||
-          std::from_chars(w[2].data(), w[2].data() + w[2].size(), count).ptr != w[2].data() + w[2].size()) {
+          std::from_chars(w[2].data(), w[2].data() + w[2].size(), count).ptr !=
+              w[2].data() + w[2].size()) {
         throw ParseError{where + "expected 'element <name> <count>' with a non-negative count"};
       }
       header.elements.push_back(Elem{std::string(w[1]), static_cast<std::size_t>(count), {}});
@@ -196,15 +223,20 @@ ParsedHeader parseHeader(std::string_view bytes) {
       if (w.size() == 5 && w[1] == "list") {
         prop.list = true;
         if (!parseType(w[2], prop.count_type) || !isInteger(prop.count_type)) {
-          throw ParseError{where + "list count type '" + std::string(w[2]) + "' must be an integer type"};
+          throw ParseError{where + "list count type '" + std::string(w[2]) +
+                           "' must be an integer type"};
         }
-        if (!parseType(w[3], prop.type)) throw ParseError{where + "unknown type '" + std::string(w[3]) + "'"};
+        if (!parseType(w[3], prop.type))
+          throw ParseError{where + "unknown type '" + std::string(w[3]) + "'"};
         prop.name = std::string(w[4]);
       } else if (w.size() == 3) {
-        if (!parseType(w[1], prop.type)) throw ParseError{where + "unknown type '" + std::string(w[1]) + "'"};
+        if (!parseType(w[1], prop.type))
+          throw ParseError{where + "unknown type '" + std::string(w[1]) + "'"};
         prop.name = std::string(w[2]);
       } else {
-        throw ParseError{where + "expected 'property <type> <name>' or 'property list <count type> <type> <name>'"};
+        throw ParseError{
+            where +
+            "expected 'property <type> <name>' or 'property list <count type> <type> <name>'"};
       }
       header.elements.back().props.push_back(std::move(prop));
     } else {
@@ -220,12 +252,18 @@ void assignSlots(ParsedHeader& header, PlyReadReport& report) {
     Slot slot;
   };
   static constexpr Named kVertexSlots[] = {
-      {"x", Slot::kX},           {"y", Slot::kY},
-      {"z", Slot::kZ},           {"nx", Slot::kNx},
-      {"ny", Slot::kNy},         {"nz", Slot::kNz},
-      {"red", Slot::kRed},       {"green", Slot::kGreen},
-      {"blue", Slot::kBlue},     {"diffuse_red", Slot::kRed},
-      {"diffuse_green", Slot::kGreen}, {"diffuse_blue", Slot::kBlue},
+      {"x", Slot::kX},
+      {"y", Slot::kY},
+      {"z", Slot::kZ},
+      {"nx", Slot::kNx},
+      {"ny", Slot::kNy},
+      {"nz", Slot::kNz},
+      {"red", Slot::kRed},
+      {"green", Slot::kGreen},
+      {"blue", Slot::kBlue},
+      {"diffuse_red", Slot::kRed},
+      {"diffuse_green", Slot::kGreen},
+      {"diffuse_blue", Slot::kBlue},
   };
   bool have_vertex = false;
   for (Elem& e : header.elements) {
@@ -249,10 +287,12 @@ void assignSlots(ParsedHeader& header, PlyReadReport& report) {
       const bool normals = seen[static_cast<int>(Slot::kNx)] && seen[static_cast<int>(Slot::kNy)] &&
                            seen[static_cast<int>(Slot::kNz)];
       const bool colors = seen[static_cast<int>(Slot::kRed)] &&
-                          seen[static_cast<int>(Slot::kGreen)] && seen[static_cast<int>(Slot::kBlue)];
+                          seen[static_cast<int>(Slot::kGreen)] &&
+                          seen[static_cast<int>(Slot::kBlue)];
       for (Prop& p : e.props) {
         const bool is_normal = p.slot == Slot::kNx || p.slot == Slot::kNy || p.slot == Slot::kNz;
-        const bool is_color = p.slot == Slot::kRed || p.slot == Slot::kGreen || p.slot == Slot::kBlue;
+        const bool is_color =
+            p.slot == Slot::kRed || p.slot == Slot::kGreen || p.slot == Slot::kBlue;
         if ((is_normal && !normals) || (is_color && !colors)) p.slot = Slot::kIgnore;
         if (p.slot == Slot::kIgnore) report.ignored.push_back("vertex." + p.name);
       }
@@ -260,7 +300,8 @@ void assignSlots(ParsedHeader& header, PlyReadReport& report) {
       bool have_indices = false;
       for (Prop& p : e.props) {
         if (!have_indices && p.list && (p.name == "vertex_indices" || p.name == "vertex_index")) {
-          if (!isInteger(p.type)) throw ParseError{"face property '" + p.name + "' must hold integers"};
+          if (!isInteger(p.type))
+            throw ParseError{"face property '" + p.name + "' must hold integers"};
           p.slot = Slot::kIndices;
           have_indices = true;
         } else {
@@ -288,7 +329,8 @@ double minimumBodyBytes(const ParsedHeader& header) {
       if (header.format == PlyFormat::kAscii) {
         row += 2.0 * (p.list ? 1.0 + min_items : 1.0);
       } else {
-        row += p.list ? static_cast<double>(sizeOf(p.count_type)) + min_items * static_cast<double>(sizeOf(p.type))
+        row += p.list ? static_cast<double>(sizeOf(p.count_type)) +
+                            min_items * static_cast<double>(sizeOf(p.type))
                       : static_cast<double>(sizeOf(p.type));
       }
     }
@@ -303,7 +345,8 @@ double minimumBodyBytes(const ParsedHeader& header) {
 bool isSpace(char c) { return c == ' ' || c == '\n' || c == '\r' || c == '\t'; }
 
 std::string typeName(Type t) {
-  static constexpr const char* kNames[] = {"char", "uchar", "short", "ushort", "int", "uint", "float", "double"};
+  static constexpr const char* kNames[] = {"char", "uchar", "short", "ushort",
+                                           "int",  "uint",  "float", "double"};
   return kNames[static_cast<int>(t)];
 }
 
@@ -311,15 +354,35 @@ std::string typeName(Type t) {
 void checkRange(std::int64_t v, Type t) {
   std::int64_t lo = 0, hi = 0;
   switch (t) {
-    case Type::kInt8: lo = INT8_MIN; hi = INT8_MAX; break;
-    case Type::kUint8: lo = 0; hi = UINT8_MAX; break;
-    case Type::kInt16: lo = INT16_MIN; hi = INT16_MAX; break;
-    case Type::kUint16: lo = 0; hi = UINT16_MAX; break;
-    case Type::kInt32: lo = INT32_MIN; hi = INT32_MAX; break;
-    case Type::kUint32: lo = 0; hi = UINT32_MAX; break;
-    default: return;
+    case Type::kInt8:
+      lo = INT8_MIN;
+      hi = INT8_MAX;
+      break;
+    case Type::kUint8:
+      lo = 0;
+      hi = UINT8_MAX;
+      break;
+    case Type::kInt16:
+      lo = INT16_MIN;
+      hi = INT16_MAX;
+      break;
+    case Type::kUint16:
+      lo = 0;
+      hi = UINT16_MAX;
+      break;
+    case Type::kInt32:
+      lo = INT32_MIN;
+      hi = INT32_MAX;
+      break;
+    case Type::kUint32:
+      lo = 0;
+      hi = UINT32_MAX;
+      break;
+    default:
+      return;
   }
-  if (v < lo || v > hi) throw ParseError{"value " + std::to_string(v) + " does not fit type " + typeName(t)};
+  if (v < lo || v > hi)
+    throw ParseError{"value " + std::to_string(v) + " does not fit type " + typeName(t)};
 }
 
 class AsciiSource {
@@ -349,8 +412,9 @@ class AsciiSource {
   std::size_t finish() {
     while (p_ != end_ && isSpace(*p_)) ++p_;
     if (p_ != end_) {
-      throw ParseError{"line " + std::to_string(line_) +
-                       ": unexpected data after the last element (do the header's counts match the data?)"};
+      throw ParseError{
+          "line " + std::to_string(line_) +
+          ": unexpected data after the last element (do the header's counts match the data?)"};
     }
     return 0;
   }
@@ -409,32 +473,48 @@ class BinarySource {
 
   double scalar(Type t) {
     switch (t) {
-      case Type::kInt8: return get<std::int8_t>();
-      case Type::kUint8: return get<std::uint8_t>();
-      case Type::kInt16: return get<std::int16_t>();
-      case Type::kUint16: return get<std::uint16_t>();
-      case Type::kInt32: return get<std::int32_t>();
-      case Type::kUint32: return get<std::uint32_t>();
-      case Type::kFloat32: return get<float>();
-      case Type::kFloat64: return get<double>();
+      case Type::kInt8:
+        return get<std::int8_t>();
+      case Type::kUint8:
+        return get<std::uint8_t>();
+      case Type::kInt16:
+        return get<std::int16_t>();
+      case Type::kUint16:
+        return get<std::uint16_t>();
+      case Type::kInt32:
+        return get<std::int32_t>();
+      case Type::kUint32:
+        return get<std::uint32_t>();
+      case Type::kFloat32:
+        return get<float>();
+      case Type::kFloat64:
+        return get<double>();
     }
     return 0.0;
   }
 
   std::int64_t integer(Type t) {
     switch (t) {
-      case Type::kInt8: return get<std::int8_t>();
-      case Type::kUint8: return get<std::uint8_t>();
-      case Type::kInt16: return get<std::int16_t>();
-      case Type::kUint16: return get<std::uint16_t>();
-      case Type::kInt32: return get<std::int32_t>();
-      case Type::kUint32: return get<std::uint32_t>();
-      default: throw ParseError{"expected an integer type"};
+      case Type::kInt8:
+        return get<std::int8_t>();
+      case Type::kUint8:
+        return get<std::uint8_t>();
+      case Type::kInt16:
+        return get<std::int16_t>();
+      case Type::kUint16:
+        return get<std::uint16_t>();
+      case Type::kInt32:
+        return get<std::int32_t>();
+      case Type::kUint32:
+        return get<std::uint32_t>();
+      default:
+        throw ParseError{"expected an integer type"};
     }
   }
 
   void skip(std::size_t bytes) {
-    if (static_cast<std::size_t>(end_ - p_) < bytes) throw ParseError{"the file ends early (truncated?)"};
+    if (static_cast<std::size_t>(end_ - p_) < bytes)
+      throw ParseError{"the file ends early (truncated?)"};
     p_ += bytes;
   }
 
@@ -446,7 +526,8 @@ class BinarySource {
  private:
   template <class T>
   T get() {
-    if (static_cast<std::size_t>(end_ - p_) < sizeof(T)) throw ParseError{"the file ends early (truncated?)"};
+    if (static_cast<std::size_t>(end_ - p_) < sizeof(T))
+      throw ParseError{"the file ends early (truncated?)"};
     T v;
     if constexpr (kSwap && sizeof(T) > 1) {
       char tmp[sizeof(T)];
@@ -524,14 +605,16 @@ void readBody(Source& in, const ParsedHeader& header, TriangleMesh& mesh, PlyRea
               continue;
             }
             if (n < 3) {
-              throw ParseError{"a face needs at least 3 vertex indices, this one has " + std::to_string(n)};
+              throw ParseError{"a face needs at least 3 vertex indices, this one has " +
+                               std::to_string(n)};
             }
             polygon.resize(static_cast<std::size_t>(n));
             for (std::int64_t k = 0; k < n; ++k) {
               const std::int64_t v = in.integer(p.type);
               if (v < 0 || static_cast<std::uint64_t>(v) >= vertex_count) {
-                throw ParseError{"it refers to vertex " + std::to_string(v) + ", but the file has " +
-                                 std::to_string(vertex_count) + " vertices"};
+                throw ParseError{"it refers to vertex " + std::to_string(v) +
+                                 ", but the file has " + std::to_string(vertex_count) +
+                                 " vertices"};
               }
               polygon[static_cast<std::size_t>(k)] = v;
             }
@@ -549,24 +632,44 @@ void readBody(Source& in, const ParsedHeader& header, TriangleMesh& mesh, PlyRea
           }
           const double v = in.scalar(p.type);
           switch (p.slot) {
-            case Slot::kX: mesh.positions[row].x() = static_cast<float>(v); break;
-            case Slot::kY: mesh.positions[row].y() = static_cast<float>(v); break;
-            case Slot::kZ: mesh.positions[row].z() = static_cast<float>(v); break;
-            case Slot::kNx: mesh.normals[row].x() = static_cast<float>(v); break;
-            case Slot::kNy: mesh.normals[row].y() = static_cast<float>(v); break;
-            case Slot::kNz: mesh.normals[row].z() = static_cast<float>(v); break;
-            case Slot::kRed: mesh.colors[row][0] = colorByte(v, p.type); break;
-            case Slot::kGreen: mesh.colors[row][1] = colorByte(v, p.type); break;
-            case Slot::kBlue: mesh.colors[row][2] = colorByte(v, p.type); break;
+            case Slot::kX:
+              mesh.positions[row].x() = static_cast<float>(v);
+              break;
+            case Slot::kY:
+              mesh.positions[row].y() = static_cast<float>(v);
+              break;
+            case Slot::kZ:
+              mesh.positions[row].z() = static_cast<float>(v);
+              break;
+            case Slot::kNx:
+              mesh.normals[row].x() = static_cast<float>(v);
+              break;
+            case Slot::kNy:
+              mesh.normals[row].y() = static_cast<float>(v);
+              break;
+            case Slot::kNz:
+              mesh.normals[row].z() = static_cast<float>(v);
+              break;
+            case Slot::kRed:
+              mesh.colors[row][0] = colorByte(v, p.type);
+              break;
+            case Slot::kGreen:
+              mesh.colors[row][1] = colorByte(v, p.type);
+              break;
+            case Slot::kBlue:
+              mesh.colors[row][2] = colorByte(v, p.type);
+              break;
             case Slot::kIgnore:
-            case Slot::kIndices: break;
+            case Slot::kIndices:
+              break;
           }
         }
       }
     } catch (const ParseError& err) {
-      const std::string prop = prop_index < e.props.size() ? ", property '" + e.props[prop_index].name + "'" : "";
-      throw ParseError{e.name + " " + std::to_string(row) + " of " + std::to_string(e.count) + prop +
-                       " (" + in.position() + "): " + err.what};
+      const std::string prop =
+          prop_index < e.props.size() ? ", property '" + e.props[prop_index].name + "'" : "";
+      throw ParseError{e.name + " " + std::to_string(row) + " of " + std::to_string(e.count) +
+                       prop + " (" + in.position() + "): " + err.what};
     }
   }
   report.trailing_bytes = in.finish();
@@ -579,7 +682,8 @@ PlyHeader publicHeader(const ParsedHeader& parsed) {
   for (const Elem& e : parsed.elements) {
     PlyHeader::Element pe{e.name, e.count, {}};
     for (const Prop& p : e.props) {
-      pe.properties.push_back({p.name, typeName(p.type), p.list ? typeName(p.count_type) : std::string()});
+      pe.properties.push_back(
+          {p.name, typeName(p.type), p.list ? typeName(p.count_type) : std::string()});
     }
     h.elements.push_back(std::move(pe));
   }
@@ -624,8 +728,9 @@ TriangleMesh readPly(const fs::path& path, PlyReadReport* report_out) {
         counts += (counts.empty() ? "" : ", ") + std::to_string(e.count) + " '" + e.name + "'";
       }
       throw ParseError{"truncated: the header announces " + counts + " elements (at least " +
-                       std::to_string(static_cast<std::uint64_t>(needed)) + " bytes of data), but only " +
-                       std::to_string(body_bytes) + " bytes follow the header"};
+                       std::to_string(static_cast<std::uint64_t>(needed)) +
+                       " bytes of data), but only " + std::to_string(body_bytes) +
+                       " bytes follow the header"};
     }
     report.header = publicHeader(header);
 
@@ -685,28 +790,46 @@ void writePly(const fs::path& path, const TriangleMesh& mesh, PlyFormat format) 
     out.reserve(out.size() + n * (normals ? 80 : 40) + mesh.triangles.size() * 24);
     for (std::size_t i = 0; i < n; ++i) {
       const auto& p = mesh.positions[i];
-      putText(out, p.x()); out += ' '; putText(out, p.y()); out += ' '; putText(out, p.z());
+      putText(out, p.x());
+      out += ' ';
+      putText(out, p.y());
+      out += ' ';
+      putText(out, p.z());
       if (normals) {
         const auto& nm = mesh.normals[i];
-        out += ' '; putText(out, nm.x()); out += ' '; putText(out, nm.y()); out += ' '; putText(out, nm.z());
+        out += ' ';
+        putText(out, nm.x());
+        out += ' ';
+        putText(out, nm.y());
+        out += ' ';
+        putText(out, nm.z());
       }
       if (colors) {
         const auto& c = mesh.colors[i];
-        for (int k = 0; k < 3; ++k) { out += ' '; putText(out, static_cast<int>(c[k])); }
+        for (int k = 0; k < 3; ++k) {
+          out += ' ';
+          putText(out, static_cast<int>(c[k]));
+        }
       }
       out += '\n';
     }
     for (const auto& t : mesh.triangles) {
       out += '3';
-      for (int k = 0; k < 3; ++k) { out += ' '; putText(out, t[k]); }
+      for (int k = 0; k < 3; ++k) {
+        out += ' ';
+        putText(out, t[k]);
+      }
       out += '\n';
     }
   } else {
-    const bool swap = (format == PlyFormat::kBinaryLittleEndian) != (std::endian::native == std::endian::little);
-    out.reserve(out.size() + n * (12 + (normals ? 12 : 0) + (colors ? 3 : 0)) + mesh.triangles.size() * 13);
+    const bool swap =
+        (format == PlyFormat::kBinaryLittleEndian) != (std::endian::native == std::endian::little);
+    out.reserve(out.size() + n * (12 + (normals ? 12 : 0) + (colors ? 3 : 0)) +
+                mesh.triangles.size() * 13);
     for (std::size_t i = 0; i < n; ++i) {
       for (int k = 0; k < 3; ++k) putBinary(out, mesh.positions[i][k], swap);
-      if (normals) for (int k = 0; k < 3; ++k) putBinary(out, mesh.normals[i][k], swap);
+      if (normals)
+        for (int k = 0; k < 3; ++k) putBinary(out, mesh.normals[i][k], swap);
       if (colors) out.append(reinterpret_cast<const char*>(mesh.colors[i].data()), 3);
     }
     for (const auto& t : mesh.triangles) {

@@ -24,8 +24,7 @@ double secondsSince(Clock::time_point start) {
 ProgressBar::ProgressBar(std::string label, std::size_t total, Style style, std::FILE* out)
     : label_(std::move(label)),
       total_(total),
-      redraw_(style == Style::kRedraw ||
-              (style == Style::kAuto && ::isatty(::fileno(out)) == 1)),
+      redraw_(style == Style::kRedraw || (style == Style::kAuto && ::isatty(::fileno(out)) == 1)),
       silent_(!log::enabled(log::Level::kInfo)),
       out_(out),
       start_(Clock::now()),
@@ -87,7 +86,8 @@ void ProgressBar::draw(std::size_t done, bool final) {
       std::snprintf(eta, sizeof eta, ", %.0f s left",
                     static_cast<double>(total_ - std::min(done, total_)) / rate);
     }
-    std::fprintf(out_, "\r\033[K%s: %s%s, %.1f/s%s", label_.c_str(), bar.c_str(), counts, rate, eta);
+    std::fprintf(out_, "\r\033[K%s: %s%s, %.1f/s%s", label_.c_str(), bar.c_str(), counts, rate,
+                 eta);
     std::fflush(out_);
     return;
   }

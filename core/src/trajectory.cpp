@@ -47,7 +47,8 @@ double Trajectory::durationS() const {
 double Trajectory::pathLengthM() const {
   double length = 0.0;
   for (std::size_t i = 1; i < poses.size(); ++i) {
-    length += (poses[i].T_W_C.translation() - poses[i - 1].T_W_C.translation()).cast<double>().norm();
+    length +=
+        (poses[i].T_W_C.translation() - poses[i - 1].T_W_C.translation()).cast<double>().norm();
   }
   return length;
 }
@@ -70,7 +71,8 @@ Trajectory readTumTrajectory(const std::filesystem::path& path) {
     const std::size_t first = line.find_first_not_of(" \t\r");
     if (first == std::string_view::npos || line[first] == '#') continue;
     if (!parseNumbers(line, v, bad)) {
-      throw InputError(path, where + "'" + bad + "' is not a number (expected 't tx ty tz qx qy qz qw')");
+      throw InputError(path,
+                       where + "'" + bad + "' is not a number (expected 't tx ty tz qx qy qz qw')");
     }
     if (v.size() != 8) {
       throw InputError(path, where + "expected 8 numbers 't tx ty tz qx qy qz qw', found " +
@@ -80,11 +82,13 @@ Trajectory readTumTrajectory(const std::filesystem::path& path) {
       if (!std::isfinite(x)) throw InputError(path, where + "contains NaN or infinity");
     }
     if (!trajectory.poses.empty() && v[0] < trajectory.poses.back().stamp_s) {
-      throw InputError(path, where + "time stamp " + std::to_string(v[0]) + " is earlier than the line before");
+      throw InputError(
+          path, where + "time stamp " + std::to_string(v[0]) + " is earlier than the line before");
     }
     const Eigen::Quaterniond q(v[7], v[4], v[5], v[6]);
     if (std::abs(q.norm() - 1.0) > kQuaternionNormTolerance) {
-      throw InputError(path, where + "quaternion (qx qy qz qw) has norm " + std::to_string(q.norm()) +
+      throw InputError(path, where + "quaternion (qx qy qz qw) has norm " +
+                                 std::to_string(q.norm()) +
                                  ", not 1 (is the column order 't tx ty tz qx qy qz qw'?)");
     }
     StampedPose sp;
@@ -98,7 +102,8 @@ Trajectory readTumTrajectory(const std::filesystem::path& path) {
 }
 
 void writeTumTrajectory(const std::filesystem::path& path, const Trajectory& trajectory) {
-  std::string out = "# objscan trajectory, TUM format: timestamp tx ty tz qx qy qz qw (T_W_C, metres)\n";
+  std::string out =
+      "# objscan trajectory, TUM format: timestamp tx ty tz qx qy qz qw (T_W_C, metres)\n";
   char buf[64];
   auto put = [&](float x) {
     const auto r = std::to_chars(buf, buf + sizeof buf, x);  // shortest exact representation
@@ -110,8 +115,13 @@ void writeTumTrajectory(const std::filesystem::path& path, const Trajectory& tra
     out += buf;
     const Eigen::Vector3f t = sp.T_W_C.translation();
     const Eigen::Quaternionf q(sp.T_W_C.rotation());
-    put(t.x()); put(t.y()); put(t.z());
-    put(q.x()); put(q.y()); put(q.z()); put(q.w());
+    put(t.x());
+    put(t.y());
+    put(t.z());
+    put(q.x());
+    put(q.y());
+    put(q.z());
+    put(q.w());
     out += '\n';
   }
   writeFileAtomically(path, out);

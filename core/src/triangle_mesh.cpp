@@ -7,7 +7,8 @@ namespace objscan {
 namespace {
 
 std::string str(const Eigen::Vector3f& v) {
-  return "(" + std::to_string(v.x()) + ", " + std::to_string(v.y()) + ", " + std::to_string(v.z()) + ")";
+  return "(" + std::to_string(v.x()) + ", " + std::to_string(v.y()) + ", " + std::to_string(v.z()) +
+         ")";
 }
 
 }  // namespace
@@ -16,7 +17,8 @@ void TriangleMesh::validate() const {
   const size_t n = positions.size();
   for (size_t i = 0; i < n; ++i) {
     if (!positions[i].allFinite()) {
-      throw std::invalid_argument("vertex " + std::to_string(i) + " has a non-finite position " + str(positions[i]));
+      throw std::invalid_argument("vertex " + std::to_string(i) + " has a non-finite position " +
+                                  str(positions[i]));
     }
   }
   if (!normals.empty()) {
@@ -26,7 +28,8 @@ void TriangleMesh::validate() const {
     }
     for (size_t i = 0; i < n; ++i) {
       if (!normals[i].allFinite()) {
-        throw std::invalid_argument("vertex " + std::to_string(i) + " has a non-finite normal " + str(normals[i]));
+        throw std::invalid_argument("vertex " + std::to_string(i) + " has a non-finite normal " +
+                                    str(normals[i]));
       }
     }
   }

@@ -20,7 +20,8 @@ ProcessResult objscan(std::vector<std::string> args) {
 }
 
 /// Bad input: exit code 2, nothing on stdout, exactly one line on stderr naming the path.
-void expectOneLineError(const ProcessResult& r, const std::string& path, const std::string& needle) {
+void expectOneLineError(const ProcessResult& r, const std::string& path,
+                        const std::string& needle) {
   EXPECT_EQ(r.exit_code, 2) << r.err;
   EXPECT_EQ(r.out, "");
   const auto ls = testing::lines(r.err);
@@ -30,31 +31,40 @@ void expectOneLineError(const ProcessResult& r, const std::string& path, const s
 }
 
 TEST(Cli, HelpForEveryCommandExitsZero) {
-  for (const char* cmd : {"info", "devices", "record", "fuse", "discover", "render", "scan", "synth", "eval", "train"}) {
+  for (const char* cmd : {"info", "devices", "record", "fuse", "discover", "render", "scan",
+                          "synth", "eval", "train"}) {
     const ProcessResult r = objscan({cmd, "--help"});
     EXPECT_EQ(r.exit_code, 0) << cmd;
     EXPECT_NE(r.out.find("Usage: objscan " + std::string(cmd)), std::string::npos) << r.out;
   }
   const ProcessResult top = objscan({"--help"});
   EXPECT_EQ(top.exit_code, 0);
-  EXPECT_NE(top.out.find("Exit codes: 0 success, 1 runtime failure, 2 bad usage or bad input."), std::string::npos);
+  EXPECT_NE(top.out.find("Exit codes: 0 success, 1 runtime failure, 2 bad usage or bad input."),
+            std::string::npos);
 }
 
 TEST(Cli, CommandsNotBuiltYetSaySoAndExitTwo) {
-  for (const char* cmd : {"devices", "record", "fuse", "discover", "render", "scan", "synth", "eval", "train"}) {
+  for (const char* cmd :
+       {"devices", "record", "fuse", "discover", "render", "scan", "synth", "eval", "train"}) {
     const ProcessResult r = objscan({cmd, "some.oni", "--out", "dir"});
     EXPECT_EQ(r.exit_code, 2) << cmd;
-    EXPECT_EQ(r.err, "objscan: error: '" + std::string(cmd) + "' is not built yet (it arrives with Step " +
-                         (std::string(cmd) == "synth" ? "B" :
-                          std::string(cmd) == "devices" || std::string(cmd) == "record" ? "C" :
-                          std::string(cmd) == "fuse" ? "D" :
-                          std::string(cmd) == "render" || std::string(cmd) == "scan" ? "F" : "E") + ")\n");
+    EXPECT_EQ(r.err, "objscan: error: '" + std::string(cmd) +
+                         "' is not built yet (it arrives with Step " +
+                         (std::string(cmd) == "synth"                                     ? "B"
+                          : std::string(cmd) == "devices" || std::string(cmd) == "record" ? "C"
+                          : std::string(cmd) == "fuse"                                    ? "D"
+                          : std::string(cmd) == "render" || std::string(cmd) == "scan"    ? "F"
+                                                                                          : "E") +
+                         ")\n");
   }
 }
 
 TEST(Cli, BadUsageExitsTwoWithOneLine) {
-  for (const std::vector<std::string>& args :
-       {std::vector<std::string>{}, {"frobnicate"}, {"info"}, {"info", "--bogus", "x"}, {"-q", "-v", "info", "x"}}) {
+  for (const std::vector<std::string>& args : {std::vector<std::string>{},
+                                               {"frobnicate"},
+                                               {"info"},
+                                               {"info", "--bogus", "x"},
+                                               {"-q", "-v", "info", "x"}}) {
     const ProcessResult r = objscan(args);
     EXPECT_EQ(r.exit_code, 2) << r.err;
     EXPECT_EQ(testing::lines(r.err).size(), 1u) << r.err;
@@ -79,7 +89,8 @@ TEST(Cli, InfoOnShippedRecordingAndTrajectory) {
   const std::string rec = std::string(OBJSCAN_SOURCE_DIR) + "/recordings/tum_fr2_desk_10";
   ProcessResult r = objscan({"info", rec});
   EXPECT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_NE(r.out.find("frames        10 (paired by associations.txt)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("frames        10 (paired by associations.txt)"), std::string::npos)
+      << r.out;
   EXPECT_NE(r.out.find("all 10 frames decoded, 10 with colour"), std::string::npos) << r.out;
   // stderr is a pipe here, so the progress bar prints plain lines, never carriage returns.
   EXPECT_NE(r.err.find("reading frames: 100% (10/10) in "), std::string::npos) << r.err;
@@ -100,28 +111,39 @@ TEST(Cli, InfoOnBadInputGivesOneLineAndExitTwo) {
   writePly(dir / "good.ply", mesh);
   const std::string good = testing::readBytes(dir / "good.ply");
 
-  expectOneLineError(objscan({"info", (dir / "absent.ply").string()}), (dir / "absent.ply").string(), "no such file");
+  expectOneLineError(objscan({"info", (dir / "absent.ply").string()}),
+                     (dir / "absent.ply").string(), "no such file");
   expectOneLineError(objscan({"info", dir.path().string()}), dir.path().string(), "is a directory");
   writeBytes(dir / "empty.ply", "");
-  expectOneLineError(objscan({"info", (dir / "empty.ply").string()}), (dir / "empty.ply").string(), "empty");
-  for (const std::size_t cut : {std::size_t{3}, std::size_t{150}, good.size() / 2, good.size() - 1}) {
+  expectOneLineError(objscan({"info", (dir / "empty.ply").string()}), (dir / "empty.ply").string(),
+                     "empty");
+  for (const std::size_t cut :
+       {std::size_t{3}, std::size_t{150}, good.size() / 2, good.size() - 1}) {
     writeBytes(dir / "cut.ply", good.substr(0, cut));
-    expectOneLineError(objscan({"info", (dir / "cut.ply").string()}), (dir / "cut.ply").string(), "");
+    expectOneLineError(objscan({"info", (dir / "cut.ply").string()}), (dir / "cut.ply").string(),
+                       "");
   }
   const std::string header =
-      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float "
+      "z\n"
       "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
   writeBytes(dir / "oor.ply", header + "0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n");
-  expectOneLineError(objscan({"info", (dir / "oor.ply").string()}), (dir / "oor.ply").string(), "refers to vertex 7");
+  expectOneLineError(objscan({"info", (dir / "oor.ply").string()}), (dir / "oor.ply").string(),
+                     "refers to vertex 7");
   writeBytes(dir / "nan.ply", header + "0 0 0\nnan 0 0\n0 1 0\n3 0 1 2\n");
-  expectOneLineError(objscan({"info", (dir / "nan.ply").string()}), (dir / "nan.ply").string(), "non-finite position");
+  expectOneLineError(objscan({"info", (dir / "nan.ply").string()}), (dir / "nan.ply").string(),
+                     "non-finite position");
   writeBytes(dir / "scene.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
-  expectOneLineError(objscan({"info", (dir / "scene.obj").string()}), (dir / "scene.obj").string(), "unknown format");
+  expectOneLineError(objscan({"info", (dir / "scene.obj").string()}), (dir / "scene.obj").string(),
+                     "unknown format");
   writeBytes(dir / "noise.ply", std::string("\x89PNG\r\n\x1a\n", 8) + std::string(100, 'x'));
-  expectOneLineError(objscan({"info", (dir / "noise.ply").string()}), (dir / "noise.ply").string(), "not a PLY file");
-  writeBytes(dir / "zero.ply", "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\n"
-                               "property float z\nend_header\n");
-  expectOneLineError(objscan({"info", (dir / "zero.ply").string()}), (dir / "zero.ply").string(), "empty mesh");
+  expectOneLineError(objscan({"info", (dir / "noise.ply").string()}), (dir / "noise.ply").string(),
+                     "not a PLY file");
+  writeBytes(dir / "zero.ply",
+             "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\n"
+             "property float z\nend_header\n");
+  expectOneLineError(objscan({"info", (dir / "zero.ply").string()}), (dir / "zero.ply").string(),
+                     "empty mesh");
 }
 
 }  // namespace

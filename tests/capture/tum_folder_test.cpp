@@ -15,7 +15,8 @@ using objscan::testing::writeBytes;
 
 /// Writes a 4x3 TUM folder with frames whose depth pixel (u, v) is 1000 * (frame + 1) + 10 * v + u
 /// raw units, and whose colour is (R, G, B) = (frame, u, v).
-void makeFolder(const std::filesystem::path& dir, int frames, const std::vector<double>& rgb_offsets_s) {
+void makeFolder(const std::filesystem::path& dir, int frames,
+                const std::vector<double>& rgb_offsets_s) {
   std::filesystem::create_directories(dir / "rgb");
   std::filesystem::create_directories(dir / "depth");
   std::string rgb_txt = "# color images\n# timestamp filename\n", depth_txt = "# depth maps\n";
@@ -37,8 +38,9 @@ void makeFolder(const std::filesystem::path& dir, int frames, const std::vector<
   }
   writeBytes(dir / "rgb.txt", rgb_txt);
   writeBytes(dir / "depth.txt", depth_txt);
-  writeBytes(dir / "intrinsics.json",
-             R"({"fx": 5, "fy": 5, "cx": 1.5, "cy": 1, "width": 4, "height": 3, "depth_factor": 1000})");
+  writeBytes(
+      dir / "intrinsics.json",
+      R"({"fx": 5, "fy": 5, "cx": 1.5, "cy": 1, "width": 4, "height": 3, "depth_factor": 1000})");
 }
 
 TEST(TumFolder, DepthIsRawOverFactorAndColourIsRgbOrder) {
@@ -96,7 +98,9 @@ TEST(TumFolder, BadFoldersAndImagesAreInputErrors) {
     TumFolder folder(dir.path());
     ADD_FAILURE();
   } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("rgb/1.png: listed in depth.txt + rgb.txt"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("rgb/1.png: listed in depth.txt + rgb.txt"),
+              std::string::npos)
+        << e.what();
   }
   cv::imwrite((dir / "rgb" / "1.png").string(), cv::Mat(3, 4, CV_8UC3));
   cv::imwrite((dir / "depth" / "1.png").string(), cv::Mat(3, 4, CV_8UC1, cv::Scalar(5)));
@@ -109,7 +113,8 @@ TEST(TumFolder, BadFoldersAndImagesAreInputErrors) {
 }
 
 TEST(TumFolder, ShippedRecordingOpensWithItsCalibrationAndGroundTruth) {
-  const TumFolder folder(std::filesystem::path(OBJSCAN_SOURCE_DIR) / "recordings" / "tum_fr2_desk_10");
+  const TumFolder folder(std::filesystem::path(OBJSCAN_SOURCE_DIR) / "recordings" /
+                         "tum_fr2_desk_10");
   ASSERT_EQ(folder.size(), 10u);
   EXPECT_DOUBLE_EQ(folder.intrinsics().fx_px, 520.9);
   EXPECT_DOUBLE_EQ(folder.depthFactor(), 5000.0);

@@ -25,7 +25,9 @@ TEST(Intrinsics, ValidateRejectsBadValues) {
     return in;
   };
   EXPECT_THROW(bad([](Intrinsics& i) { i.fx_px = 0; }).validate(), std::invalid_argument);
-  EXPECT_THROW(bad([](Intrinsics& i) { i.fy_px = std::numeric_limits<double>::quiet_NaN(); }).validate(), std::invalid_argument);
+  EXPECT_THROW(
+      bad([](Intrinsics& i) { i.fy_px = std::numeric_limits<double>::quiet_NaN(); }).validate(),
+      std::invalid_argument);
   EXPECT_THROW(bad([](Intrinsics& i) { i.width_px = 0; }).validate(), std::invalid_argument);
   EXPECT_THROW(bad([](Intrinsics& i) { i.height_px = 100000; }).validate(), std::invalid_argument);
   EXPECT_THROW(bad([](Intrinsics& i) { i.cx_px = 700; }).validate(), std::invalid_argument);
@@ -47,14 +49,17 @@ TEST(Intrinsics, BadJsonFilesAreInputErrors) {
   testing::TempDir dir;
   testing::writeBytes(dir / "broken.json", "{\"fx\": 500,");
   EXPECT_THROW(readIntrinsicsJson(dir / "broken.json"), InputError);
-  testing::writeBytes(dir / "missing.json", R"({"fx": 500, "fy": 500, "cx": 320, "cy": 240, "width": 640})");
+  testing::writeBytes(dir / "missing.json",
+                      R"({"fx": 500, "fy": 500, "cx": 320, "cy": 240, "width": 640})");
   try {
     readIntrinsicsJson(dir / "missing.json");
     ADD_FAILURE();
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("\"height\""), std::string::npos) << e.what();
   }
-  testing::writeBytes(dir / "outside.json", R"({"fx": 500, "fy": 500, "cx": 999, "cy": 240, "width": 640, "height": 480})");
+  testing::writeBytes(
+      dir / "outside.json",
+      R"({"fx": 500, "fy": 500, "cx": 999, "cy": 240, "width": 640, "height": 480})");
   EXPECT_THROW(readIntrinsicsJson(dir / "outside.json"), InputError);
 }
 

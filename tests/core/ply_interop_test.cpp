@@ -27,9 +27,15 @@ pcl::PolygonMesh toPcl(const TriangleMesh& m) {
   pcl::PointCloud<pcl::PointXYZRGBNormal> cloud;
   for (std::size_t i = 0; i < m.positions.size(); ++i) {
     pcl::PointXYZRGBNormal p;
-    p.x = m.positions[i].x(); p.y = m.positions[i].y(); p.z = m.positions[i].z();
-    p.normal_x = m.normals[i].x(); p.normal_y = m.normals[i].y(); p.normal_z = m.normals[i].z();
-    p.r = m.colors[i][0]; p.g = m.colors[i][1]; p.b = m.colors[i][2];
+    p.x = m.positions[i].x();
+    p.y = m.positions[i].y();
+    p.z = m.positions[i].z();
+    p.normal_x = m.normals[i].x();
+    p.normal_y = m.normals[i].y();
+    p.normal_z = m.normals[i].z();
+    p.r = m.colors[i][0];
+    p.g = m.colors[i][1];
+    p.b = m.colors[i][2];
     cloud.push_back(p);
   }
   pcl::PolygonMesh mesh;
@@ -48,7 +54,8 @@ void expectClose(const TriangleMesh& expected, const TriangleMesh& actual, float
   ASSERT_EQ(actual.hasNormals(), expected.hasNormals());
   ASSERT_EQ(actual.hasColors(), expected.hasColors());
   for (std::size_t i = 0; i < expected.positions.size(); ++i) {
-    ASSERT_LE((actual.positions[i] - expected.positions[i]).cwiseAbs().maxCoeff(), tol) << "vertex " << i;
+    ASSERT_LE((actual.positions[i] - expected.positions[i]).cwiseAbs().maxCoeff(), tol)
+        << "vertex " << i;
     if (expected.hasNormals()) {
       ASSERT_LE((actual.normals[i] - expected.normals[i]).cwiseAbs().maxCoeff(), tol);
     }
@@ -100,9 +107,11 @@ TEST(PlyInterop, PclAndOpen3DReadWhatObjscanWrites) {
     for (std::size_t i = 0; i < m.positions.size(); ++i) {
       ASSERT_EQ(om.vertices_[i].cast<float>(), m.positions[i]);
       ASSERT_EQ(om.vertex_normals_[i].cast<float>(), m.normals[i]);
-      ASSERT_EQ((om.vertex_colors_[i] * 255.0).array().round().cast<int>().matrix(), m.colors[i].cast<int>());
+      ASSERT_EQ((om.vertex_colors_[i] * 255.0).array().round().cast<int>().matrix(),
+                m.colors[i].cast<int>());
     }
-    for (std::size_t t = 0; t < m.triangles.size(); ++t) ASSERT_EQ(om.triangles_[t], m.triangles[t]);
+    for (std::size_t t = 0; t < m.triangles.size(); ++t)
+      ASSERT_EQ(om.triangles_[t], m.triangles[t]);
 
     pcl::PolygonMesh pm;
     ASSERT_EQ(pcl::io::loadPLYFile((dir / "ours.ply").string(), pm), 0);
@@ -116,7 +125,8 @@ TEST(PlyInterop, PclAndOpen3DReadWhatObjscanWrites) {
       ASSERT_EQ(Rgb8(cloud[i].r, cloud[i].g, cloud[i].b), m.colors[i]);
     }
     for (std::size_t t = 0; t < m.triangles.size(); ++t) {
-      for (int k = 0; k < 3; ++k) ASSERT_EQ(static_cast<int>(pm.polygons[t].vertices[k]), m.triangles[t][k]);
+      for (int k = 0; k < 3; ++k)
+        ASSERT_EQ(static_cast<int>(pm.polygons[t].vertices[k]), m.triangles[t][k]);
     }
   }
 }

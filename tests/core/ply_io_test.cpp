@@ -37,7 +37,8 @@ void expectReadError(const std::filesystem::path& path, const std::string& needl
   } catch (const InputError& e) {
     const std::string what = e.what();
     EXPECT_EQ(what.rfind(path.string() + ": ", 0), 0u) << what;
-    EXPECT_NE(what.find(needle), std::string::npos) << "message: " << what << "\nexpected to contain: " << needle;
+    EXPECT_NE(what.find(needle), std::string::npos)
+        << "message: " << what << "\nexpected to contain: " << needle;
   }
 }
 
@@ -76,24 +77,28 @@ TEST_P(PlyRoundTrip, PointCloudWithoutFacesReadsAsMeshWithoutTriangles) {
 INSTANTIATE_TEST_SUITE_P(AllFormats, PlyRoundTrip,
                          ::testing::Values(PlyFormat::kAscii, PlyFormat::kBinaryLittleEndian,
                                            PlyFormat::kBinaryBigEndian),
-                         [](const ::testing::TestParamInfo<PlyFormat>& p) { return std::string(toString(p.param)); });
+                         [](const ::testing::TestParamInfo<PlyFormat>& p) {
+                           return std::string(toString(p.param));
+                         });
 
 TEST(PlyIo, ReadsPropertiesInAnyOrderAndIgnoresExtras) {
   TempDir dir;
-  writeBytes(dir / "m.ply",
-             "ply\r\nformat ascii 1.0\r\ncomment hand made\r\nobj_info order test\r\n"
-             "element vertex 3\r\n"
-             "property uchar red\r\nproperty float nx\r\nproperty double z\r\nproperty float quality\r\n"
-             "property float x\r\nproperty list uchar float extra\r\nproperty float y\r\nproperty uchar alpha\r\n"
-             "property uchar green\r\nproperty float ny\r\nproperty uchar blue\r\nproperty float nz\r\n"
-             "element edge 1\r\nproperty int vertex1\r\nproperty int vertex2\r\n"
-             "element face 1\r\nproperty int flags\r\nproperty list int int vertex_indices\r\n"
-             "end_header\r\n"
-             "10 1 3.5 0.25 1.5 2 9 9 2.5 255 20 0 30 0\r\n"
-             "11 0 -3 0 -1 0 -2 7 21 1 31 0\r\n"
-             "12 0 0 0 0 1 5 0 0 22 0 32 1\r\n"
-             "0 1\r\n"
-             "77 3 2 1 0\r\n");
+  writeBytes(
+      dir / "m.ply",
+      "ply\r\nformat ascii 1.0\r\ncomment hand made\r\nobj_info order test\r\n"
+      "element vertex 3\r\n"
+      "property uchar red\r\nproperty float nx\r\nproperty double z\r\nproperty float quality\r\n"
+      "property float x\r\nproperty list uchar float extra\r\nproperty float y\r\nproperty uchar "
+      "alpha\r\n"
+      "property uchar green\r\nproperty float ny\r\nproperty uchar blue\r\nproperty float nz\r\n"
+      "element edge 1\r\nproperty int vertex1\r\nproperty int vertex2\r\n"
+      "element face 1\r\nproperty int flags\r\nproperty list int int vertex_indices\r\n"
+      "end_header\r\n"
+      "10 1 3.5 0.25 1.5 2 9 9 2.5 255 20 0 30 0\r\n"
+      "11 0 -3 0 -1 0 -2 7 21 1 31 0\r\n"
+      "12 0 0 0 0 1 5 0 0 22 0 32 1\r\n"
+      "0 1\r\n"
+      "77 3 2 1 0\r\n");
   PlyReadReport report;
   const TriangleMesh m = readPly(dir / "m.ply", &report);
   ASSERT_EQ(m.positions.size(), 3u);
@@ -108,7 +113,8 @@ TEST(PlyIo, ReadsPropertiesInAnyOrderAndIgnoresExtras) {
   ASSERT_EQ(m.triangles.size(), 1u);
   EXPECT_EQ(m.triangles[0], Eigen::Vector3i(2, 1, 0));
   EXPECT_EQ(report.header.comments.size(), 2u);
-  const std::vector<std::string> ignored = {"vertex.quality", "vertex.extra", "vertex.alpha", "edge", "face.flags"};
+  const std::vector<std::string> ignored = {"vertex.quality", "vertex.extra", "vertex.alpha",
+                                            "edge", "face.flags"};
   EXPECT_EQ(report.ignored, ignored);
 }
 
@@ -116,16 +122,31 @@ TEST(PlyIo, ReadsEveryNumericTypeAndIntListCounts) {
   TempDir dir;
   for (const bool big : {false, true}) {
     Bytes b{big, ""};
-    b.put<double>(0.125).put<std::int16_t>(-7).put<std::uint32_t>(4000000000u)
-        .put<float>(0.5f).put<float>(0.25f).put<float>(1.0f);
-    b.put<double>(1.0).put<std::int16_t>(2).put<std::uint32_t>(3).put<float>(0.0f).put<float>(0.0f).put<float>(0.5f);
-    b.put<double>(2.0).put<std::int16_t>(3).put<std::uint32_t>(4).put<float>(1.0f).put<float>(1.0f).put<float>(0.0f);
+    b.put<double>(0.125)
+        .put<std::int16_t>(-7)
+        .put<std::uint32_t>(4000000000u)
+        .put<float>(0.5f)
+        .put<float>(0.25f)
+        .put<float>(1.0f);
+    b.put<double>(1.0)
+        .put<std::int16_t>(2)
+        .put<std::uint32_t>(3)
+        .put<float>(0.0f)
+        .put<float>(0.0f)
+        .put<float>(0.5f);
+    b.put<double>(2.0)
+        .put<std::int16_t>(3)
+        .put<std::uint32_t>(4)
+        .put<float>(1.0f)
+        .put<float>(1.0f)
+        .put<float>(0.0f);
     b.put<std::int32_t>(3).put<std::uint32_t>(0).put<std::uint32_t>(1).put<std::uint32_t>(2);
     writeBytes(dir / "t.ply",
                std::string("ply\nformat ") + (big ? "binary_big_endian" : "binary_little_endian") +
                    " 1.0\nelement vertex 3\nproperty float64 x\nproperty int16 y\nproperty uint z\n"
                    "property float32 red\nproperty float green\nproperty float blue\n"
-                   "element face 1\nproperty list int uint vertex_indices\nend_header\n" + b.data);
+                   "element face 1\nproperty list int uint vertex_indices\nend_header\n" +
+                   b.data);
     const TriangleMesh m = readPly(dir / "t.ply");
     ASSERT_EQ(m.positions.size(), 3u) << (big ? "big" : "little");
     EXPECT_EQ(m.positions[0], Eigen::Vector3f(0.125f, -7.0f, 4e9f));
@@ -137,13 +158,15 @@ TEST(PlyIo, ReadsEveryNumericTypeAndIntListCounts) {
 TEST(PlyIo, PolygonsAreFanTriangulatedAndDegenerateTrianglesDropped) {
   TempDir dir;
   writeBytes(dir / "p.ply",
-             "ply\nformat ascii 1.0\nelement vertex 6\nproperty float x\nproperty float y\nproperty float z\n"
+             "ply\nformat ascii 1.0\nelement vertex 6\nproperty float x\nproperty float "
+             "y\nproperty float z\n"
              "element face 3\nproperty list uchar int vertex_index\nend_header\n"
              "0 0 0\n1 0 0\n1 1 0\n0 1 0\n-1 1 0\n-1 0 0\n"
              "4 0 1 2 3\n5 0 1 2 3 4\n4 0 0 1 2\n");
   PlyReadReport report;
   const TriangleMesh m = readPly(dir / "p.ply", &report);
-  const std::vector<Eigen::Vector3i> expected = {{0, 1, 2}, {0, 2, 3}, {0, 1, 2}, {0, 2, 3}, {0, 3, 4}, {0, 1, 2}};
+  const std::vector<Eigen::Vector3i> expected = {{0, 1, 2}, {0, 2, 3}, {0, 1, 2},
+                                                 {0, 2, 3}, {0, 3, 4}, {0, 1, 2}};
   EXPECT_EQ(m.triangles, expected);
   EXPECT_EQ(report.faces, 3u);
   EXPECT_EQ(report.degenerate_dropped, 1u);  // (0, 0, 1) of the last quad
@@ -159,16 +182,22 @@ TEST(PlyIo, MeshLabLayoutWithAlphaIsRead) {
     for (int k = 0; k < 3; ++k) b.put<float>(cube.positions[i][k]);
     const Eigen::Vector3f n = cube.positions[i].normalized();
     for (int k = 0; k < 3; ++k) b.put<float>(n[k]);
-    b.put<std::uint8_t>(static_cast<std::uint8_t>(i * 30)).put<std::uint8_t>(7).put<std::uint8_t>(200).put<std::uint8_t>(255);
+    b.put<std::uint8_t>(static_cast<std::uint8_t>(i * 30))
+        .put<std::uint8_t>(7)
+        .put<std::uint8_t>(200)
+        .put<std::uint8_t>(255);
   }
   for (const auto& t : cube.triangles) {
     b.put<std::uint8_t>(3).put<std::int32_t>(t[0]).put<std::int32_t>(t[1]).put<std::int32_t>(t[2]);
   }
-  writeBytes(dir / "meshlab.ply",
-             "ply\nformat binary_little_endian 1.0\ncomment VCGLIB generated\nelement vertex 8\n"
-             "property float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\n"
-             "property float nz\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n"
-             "property uchar alpha\nelement face 12\nproperty list uchar int vertex_indices\nend_header\n" + b.data);
+  writeBytes(
+      dir / "meshlab.ply",
+      "ply\nformat binary_little_endian 1.0\ncomment VCGLIB generated\nelement vertex 8\n"
+      "property float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\n"
+      "property float nz\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n"
+      "property uchar alpha\nelement face 12\nproperty list uchar int "
+      "vertex_indices\nend_header\n" +
+          b.data);
   const TriangleMesh m = readPly(dir / "meshlab.ply");
   EXPECT_EQ(m.positions, cube.positions);
   EXPECT_EQ(m.triangles, cube.triangles);
@@ -204,9 +233,11 @@ TEST(PlyIo, EveryTruncationIsAnErrorNamingTheFile) {
 TEST(PlyIo, TruncationMessagesSayWhereTheDataEnds) {
   TempDir dir;
   writeBytes(dir / "a.ply",
-             "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\n"
+             "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float "
+             "y\nproperty float z\n"
              "end_header\n0 0 0\n1 1 12");
-  expectReadError(dir / "a.ply", "vertex 1 of 2, property 'z' (line 9): the file ends in the middle of a value");
+  expectReadError(dir / "a.ply",
+                  "vertex 1 of 2, property 'z' (line 9): the file ends in the middle of a value");
   writeBytes(dir / "h.ply", "ply\nformat ascii 1.0\nelement vertex 2\nproperty fl");
   expectReadError(dir / "h.ply", "no 'end_header' line");
 }
@@ -214,10 +245,13 @@ TEST(PlyIo, TruncationMessagesSayWhereTheDataEnds) {
 TEST(PlyIo, FaceIndexOutOfRangeIsAnError) {
   TempDir dir;
   const std::string header =
-      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float "
+      "z\n"
       "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n";
   writeBytes(dir / "oor.ply", header + "3 0 1 3\n");
-  expectReadError(dir / "oor.ply", "face 0 of 1, property 'vertex_indices' (line 13): it refers to vertex 3, but the file has 3 vertices");
+  expectReadError(dir / "oor.ply",
+                  "face 0 of 1, property 'vertex_indices' (line 13): it refers to vertex 3, but "
+                  "the file has 3 vertices");
   writeBytes(dir / "neg.ply", header + "3 0 -1 2\n");
   expectReadError(dir / "neg.ply", "refers to vertex -1");
   writeBytes(dir / "two.ply", header + "2 0 1\n\n\n\n");
@@ -227,17 +261,25 @@ TEST(PlyIo, FaceIndexOutOfRangeIsAnError) {
 TEST(PlyIo, NanOrInfiniteCoordinatesAreAnError) {
   TempDir dir;
   const std::string header =
-      "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
+      "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float "
+      "z\nend_header\n";
   writeBytes(dir / "nan.ply", header + "0 0 0\n1 nan 1\n");
   expectReadError(dir / "nan.ply", "vertex 1 has a non-finite position");
   writeBytes(dir / "inf.ply", header + "0 0 0\n1 1 -inf\n");
   expectReadError(dir / "inf.ply", "vertex 1 has a non-finite position");
 
   Bytes b;
-  b.put<float>(0).put<float>(0).put<float>(0).put<float>(std::numeric_limits<float>::quiet_NaN()).put<float>(0).put<float>(0);
-  writeBytes(dir / "nan_bin.ply",
-             "ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
-             "property float z\nend_header\n" + b.data);
+  b.put<float>(0)
+      .put<float>(0)
+      .put<float>(0)
+      .put<float>(std::numeric_limits<float>::quiet_NaN())
+      .put<float>(0)
+      .put<float>(0);
+  writeBytes(
+      dir / "nan_bin.ply",
+      "ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+      "property float z\nend_header\n" +
+          b.data);
   expectReadError(dir / "nan_bin.ply", "vertex 1 has a non-finite position");
 }
 
@@ -255,17 +297,24 @@ TEST(PlyIo, CorruptHeadersAreErrors) {
       {"ply\nformat ascii 2.0\nend_header\n", "unsupported PLY version"},
       {"ply\nelement vertex 1\n" + xyz + "end_header\n0 0 0\n", "no 'format' line"},
       {"ply\nformat ascii 1.0\nproperty float x\nend_header\n", "property before any element"},
-      {"ply\nformat ascii 1.0\nelement vertex 1\nproperty float128 x\nend_header\n", "unknown type 'float128'"},
+      {"ply\nformat ascii 1.0\nelement vertex 1\nproperty float128 x\nend_header\n",
+       "unknown type 'float128'"},
       {"ply\nformat ascii 1.0\nelement vertex -1\n" + xyz + "end_header\n", "non-negative count"},
-      {"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nend_header\n0 0\n",
+      {"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nend_header\n0 "
+       "0\n",
        "lacks one of the properties x, y, z"},
-      {"ply\nformat ascii 1.0\nelement face 0\nproperty list uchar int vertex_indices\nend_header\n",
+      {"ply\nformat ascii 1.0\nelement face 0\nproperty list uchar int "
+       "vertex_indices\nend_header\n",
        "no 'vertex' element"},
-      {"ply\nformat ascii 1.0\nelement vertex 1\n" + xyz + "weird line\nend_header\n", "unknown keyword 'weird'"},
-      {"ply\nformat ascii 1.0\nelement vertex 1\n" + xyz + "element face 1\nproperty list float int vertex_indices\nend_header\n",
+      {"ply\nformat ascii 1.0\nelement vertex 1\n" + xyz + "weird line\nend_header\n",
+       "unknown keyword 'weird'"},
+      {"ply\nformat ascii 1.0\nelement vertex 1\n" + xyz +
+           "element face 1\nproperty list float int vertex_indices\nend_header\n",
        "list count type 'float' must be an integer type"},
-      {"ply\nformat ascii 1.0\nelement vertex 1\n" + xyz + "end_header\n0 zero 0\n", "'zero' is not a number"},
-      {"ply\nformat ascii 1.0\nelement vertex 1\n" + xyz + "end_header\n0 0 0\n1 1 1\n", "unexpected data after the last element"},
+      {"ply\nformat ascii 1.0\nelement vertex 1\n" + xyz + "end_header\n0 zero 0\n",
+       "'zero' is not a number"},
+      {"ply\nformat ascii 1.0\nelement vertex 1\n" + xyz + "end_header\n0 0 0\n1 1 1\n",
+       "unexpected data after the last element"},
   };
   for (std::size_t i = 0; i < cases.size(); ++i) {
     SCOPED_TRACE("case " + std::to_string(i));
@@ -277,13 +326,18 @@ TEST(PlyIo, CorruptHeadersAreErrors) {
 TEST(PlyIo, HugeCountsAreRejectedBeforeAllocating) {
   TempDir dir;
   // 10^15 vertices would need petabytes; the reader must refuse from the header alone.
-  writeBytes(dir / "huge.ply",
-             "ply\nformat binary_little_endian 1.0\nelement vertex 1000000000000000\nproperty float x\n"
-             "property float y\nproperty float z\nend_header\n" + std::string(12, '\0'));
-  expectReadError(dir / "huge.ply", "truncated: the header announces 1000000000000000 'vertex' elements");
-  writeBytes(dir / "huge_ascii.ply",
-             "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
-             "element face 99999999999\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n");
+  writeBytes(
+      dir / "huge.ply",
+      "ply\nformat binary_little_endian 1.0\nelement vertex 1000000000000000\nproperty float x\n"
+      "property float y\nproperty float z\nend_header\n" +
+          std::string(12, '\0'));
+  expectReadError(dir / "huge.ply",
+                  "truncated: the header announces 1000000000000000 'vertex' elements");
+  writeBytes(
+      dir / "huge_ascii.ply",
+      "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float "
+      "z\n"
+      "element face 99999999999\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n");
   expectReadError(dir / "huge_ascii.ply", "99999999999 'face'");
 }
 
@@ -304,7 +358,8 @@ TEST(PlyIo, WriteReplacesAtomicallyAndLeavesNoTemporaryFiles) {
   writePly(dir / "m.ply", b);
   EXPECT_TRUE(testing::bitwiseEqual(readPly(dir / "m.ply"), b));
   std::size_t files = 0;
-  for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator(dir.path())) ++files;
+  for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator(dir.path()))
+    ++files;
   EXPECT_EQ(files, 1u);
   EXPECT_THROW(writePly(dir / "no_such_dir" / "m.ply", a), OutputError);
 }

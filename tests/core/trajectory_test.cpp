@@ -31,7 +31,8 @@ TEST(Trajectory, TumRoundTripKeepsPosesAndMicrosecondStamps) {
   Trajectory t;
   for (int i = 0; i < 50; ++i) {
     const Eigen::Quaternionf q = Eigen::Quaternionf::UnitRandom();
-    t.poses.push_back({1311868164.363181 + i / 30.0, poseFromTranslationQuaternion({u(rng), u(rng), u(rng)}, q)});
+    t.poses.push_back(
+        {1311868164.363181 + i / 30.0, poseFromTranslationQuaternion({u(rng), u(rng), u(rng)}, q)});
   }
   writeTumTrajectory(dir / "t.txt", t);
   const Trajectory back = readTumTrajectory(dir / "t.txt");
@@ -41,7 +42,8 @@ TEST(Trajectory, TumRoundTripKeepsPosesAndMicrosecondStamps) {
     EXPECT_TRUE(back.poses[i].T_W_C.translation().isApprox(t.poses[i].T_W_C.translation(), 0.0f))
         << "translations are written exactly";
     // The quaternion is written exactly, then renormalised: rotation within float rounding.
-    EXPECT_LT((back.poses[i].T_W_C.linear() - t.poses[i].T_W_C.linear()).cwiseAbs().maxCoeff(), 1e-6f);
+    EXPECT_LT((back.poses[i].T_W_C.linear() - t.poses[i].T_W_C.linear()).cwiseAbs().maxCoeff(),
+              1e-6f);
   }
 }
 

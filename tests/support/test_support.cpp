@@ -45,7 +45,8 @@ TriangleMesh makeCube(float side_m) {
     m.positions.emplace_back((i & 1) ? h : -h, (i & 2) ? h : -h, (i & 4) ? h : -h);
   }
   // Two triangles per face, counter-clockwise seen from outside.
-  const int faces[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+  const int faces[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4},
+                           {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
   for (const auto& f : faces) {
     m.triangles.emplace_back(f[0], f[1], f[2]);
     m.triangles.emplace_back(f[0], f[2], f[3]);
@@ -57,13 +58,15 @@ TriangleMesh makeRandomMesh(std::uint32_t seed, std::size_t vertices, std::size_
                             bool with_normals, bool with_colors) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> coord(-5.0f, 5.0f);
-  const float awkward[] = {0.0f, -0.0f, 1e-38f, 1.4e-45f /* subnormal */, 3.4e38f, -123456.789f, 0.1f, 1.0f / 3.0f};
+  const float awkward[] = {0.0f,    -0.0f,        1e-38f, 1.4e-45f /* subnormal */,
+                           3.4e38f, -123456.789f, 0.1f,   1.0f / 3.0f};
   TriangleMesh m;
   for (std::size_t i = 0; i < vertices; ++i) {
     Eigen::Vector3f p(coord(rng), coord(rng), coord(rng));
     if (i < std::size(awkward)) p.x() = awkward[i];
     m.positions.push_back(p);
-    if (with_normals) m.normals.push_back(Eigen::Vector3f(coord(rng), coord(rng), coord(rng) + 11.0f).normalized());
+    if (with_normals)
+      m.normals.push_back(Eigen::Vector3f(coord(rng), coord(rng), coord(rng) + 11.0f).normalized());
     if (with_colors) m.colors.emplace_back(rng() & 255, rng() & 255, rng() & 255);
   }
   std::uniform_int_distribution<int> index(0, static_cast<int>(vertices) - 1);
@@ -76,7 +79,8 @@ TriangleMesh makeRandomMesh(std::uint32_t seed, std::size_t vertices, std::size_
 
 bool bitwiseEqual(const TriangleMesh& a, const TriangleMesh& b) {
   auto same = [](const std::vector<Eigen::Vector3f>& x, const std::vector<Eigen::Vector3f>& y) {
-    return x.size() == y.size() && (x.empty() || std::memcmp(x.data(), y.data(), x.size() * sizeof(x[0])) == 0);
+    return x.size() == y.size() &&
+           (x.empty() || std::memcmp(x.data(), y.data(), x.size() * sizeof(x[0])) == 0);
   };
   return same(a.positions, b.positions) && same(a.normals, b.normals) && a.colors == b.colors &&
          a.triangles == b.triangles;
@@ -84,7 +88,8 @@ bool bitwiseEqual(const TriangleMesh& a, const TriangleMesh& b) {
 
 ProcessResult runProcess(const std::vector<std::string>& argv) {
   int out_pipe[2], err_pipe[2];
-  if (::pipe2(out_pipe, O_CLOEXEC) != 0 || ::pipe2(err_pipe, O_CLOEXEC) != 0) throw std::runtime_error("pipe failed");
+  if (::pipe2(out_pipe, O_CLOEXEC) != 0 || ::pipe2(err_pipe, O_CLOEXEC) != 0)
+    throw std::runtime_error("pipe failed");
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
   posix_spawn_file_actions_adddup2(&actions, out_pipe[1], STDOUT_FILENO);

@@ -16,11 +16,12 @@ struct TumFrameFiles {
   double depth_stamp_s = 0.0;
   std::filesystem::path depth;  ///< 16-bit PNG, value / depth factor = metres, 0 = no reading
   double rgb_stamp_s = 0.0;
-  std::filesystem::path rgb;    ///< 8-bit colour image; empty path when the folder has no colour
+  std::filesystem::path rgb;  ///< 8-bit colour image; empty path when the folder has no colour
 };
 
 /// A recording in the TUM RGB-D benchmark's folder layout:
-///   rgb/ depth/ rgb.txt depth.txt [associations.txt | associate.txt] [groundtruth.txt] [intrinsics.json]
+///   rgb/ depth/ rgb.txt depth.txt [associations.txt | associate.txt] [groundtruth.txt]
+///   [intrinsics.json]
 /// Frames come from associations.txt (or associate.txt; either column order, extra columns
 /// `gt_t tx ty tz qx qy qz qw` taken as ground truth), otherwise from depth.txt with each depth
 /// image paired to the nearest rgb.txt entry within 20 ms (as TUM's associate.py does).
@@ -41,7 +42,8 @@ class TumFolder {
   const Intrinsics& intrinsics() const { return intrinsics_; }
   bool intrinsicsFromFile() const { return intrinsics_from_file_; }
   double depthFactor() const { return depth_factor_; }
-  /// How the frames were paired, for reports: "associations.txt", "depth.txt + rgb.txt (nearest)", ...
+  /// How the frames were paired, for reports: "associations.txt", "depth.txt + rgb.txt (nearest)",
+  /// ...
   const std::string& associationSource() const { return association_source_; }
   /// From groundtruth.txt, else from the association file's extra columns.
   const std::optional<Trajectory>& groundTruth() const { return ground_truth_; }

@@ -5,8 +5,8 @@
 
 namespace objscan {
 
-/// Writes `bytes` to `path` so that `path` is either left as it was or holds all of `bytes`, never a
-/// partial file: the data goes to a temporary file in the same directory, is flushed to disk
+/// Writes `bytes` to `path` so that `path` is either left as it was or holds all of `bytes`, never
+/// a partial file: the data goes to a temporary file in the same directory, is flushed to disk
 /// (fsync), and is renamed over `path`. Throws OutputError naming the path on any failure, after
 /// removing the temporary file.
 void writeFileAtomically(const std::filesystem::path& path, std::string_view bytes);

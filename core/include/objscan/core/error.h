@@ -21,8 +21,8 @@ class InputError : public std::runtime_error {
   std::filesystem::path path_;
 };
 
-/// Writing an output failed (disk full, permission denied, directory missing). The command line maps
-/// it to exit code 1 (runtime failure).
+/// Writing an output failed (disk full, permission denied, directory missing). The command line
+/// maps it to exit code 1 (runtime failure).
 class OutputError : public std::runtime_error {
  public:
   OutputError(const std::filesystem::path& path, const std::string& problem)

@@ -35,15 +35,15 @@ struct PlyHeader {
 struct PlyReadReport {
   PlyHeader header;
   std::size_t file_bytes = 0;
-  std::size_t faces = 0;                 ///< polygons in the file (before fan triangulation)
-  std::size_t degenerate_dropped = 0;    ///< triangles dropped because a vertex repeats
-  std::size_t trailing_bytes = 0;        ///< bytes after the last element (binary), ignored
-  std::vector<std::string> ignored;      ///< "vertex.s", "material", ... not read into the mesh
+  std::size_t faces = 0;               ///< polygons in the file (before fan triangulation)
+  std::size_t degenerate_dropped = 0;  ///< triangles dropped because a vertex repeats
+  std::size_t trailing_bytes = 0;      ///< bytes after the last element (binary), ignored
+  std::vector<std::string> ignored;    ///< "vertex.s", "material", ... not read into the mesh
 };
 
 /// Reads a PLY mesh (ASCII or binary of either byte order). Vertex properties x, y, z (required),
-/// nx, ny, nz and red, green, blue (uchar, or float/double in 0..1) are read in any order and of any
-/// numeric type; other properties and elements are skipped. Faces are the `vertex_indices` (or
+/// nx, ny, nz and red, green, blue (uchar, or float/double in 0..1) are read in any order and of
+/// any numeric type; other properties and elements are skipped. Faces are the `vertex_indices` (or
 /// `vertex_index`) list of any integer count/item type; polygons are fan-triangulated, triangles
 /// that repeat a vertex are dropped and counted. A file without faces reads as a point cloud.
 ///

@@ -10,10 +10,10 @@
 namespace objscan {
 
 /// Progress of a long stage, drawn on stderr.
-/// On a terminal it redraws one line in place (at most 10 times a second); otherwise (a log file, CI)
-/// it prints a plain line at every 10 % and at least every 10 s, so logs stay short and readable.
-/// Silent when the log level is below Info (--quiet). advance() is thread-safe and cheap enough to
-/// call once per item from parallel loops.
+/// On a terminal it redraws one line in place (at most 10 times a second); otherwise (a log file,
+/// CI) it prints a plain line at every 10 % and at least every 10 s, so logs stay short and
+/// readable. Silent when the log level is below Info (--quiet). advance() is thread-safe and cheap
+/// enough to call once per item from parallel loops.
 class ProgressBar {
  public:
   enum class Style {

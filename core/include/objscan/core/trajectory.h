@@ -14,7 +14,8 @@ struct StampedPose {
 };
 
 /// Camera poses in time order, the way the TUM RGB-D benchmark stores them: one line per pose,
-/// `t tx ty tz qx qy qz qw`, where (tx, ty, tz) and the unit quaternion (qx, qy, qz, qw) give T_W_C.
+/// `t tx ty tz qx qy qz qw`, where (tx, ty, tz) and the unit quaternion (qx, qy, qz, qw) give
+/// T_W_C.
 struct Trajectory {
   std::vector<StampedPose> poses;
 

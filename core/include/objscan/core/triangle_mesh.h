@@ -10,8 +10,8 @@ namespace objscan {
 using Rgb8 = Eigen::Matrix<std::uint8_t, 3, 1>;
 
 /// An indexed triangle mesh. Positions in metres, in whatever frame the producer states (a fused
-/// scene is in the world frame W). `normals` and `colors` are per vertex and either empty or exactly
-/// as long as `positions`. Triangles are counter-clockwise seen from outside (normal side).
+/// scene is in the world frame W). `normals` and `colors` are per vertex and either empty or
+/// exactly as long as `positions`. Triangles are counter-clockwise seen from outside (normal side).
 struct TriangleMesh {
   std::vector<Eigen::Vector3f> positions;
   std::vector<Eigen::Vector3f> normals;  ///< unit length, or empty
