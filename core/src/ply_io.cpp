@@ -350,39 +350,20 @@ std::string typeName(Type t) {
   return kNames[static_cast<int>(t)];
 }
 
-/// Checks an integer read as int64 fits the declared type.
+/// Checks an integer read as int64 fits the declared integer type.
 void checkRange(std::int64_t v, Type t) {
-  std::int64_t lo = 0, hi = 0;
-  switch (t) {
-    case Type::kInt8:
-      lo = INT8_MIN;
-      hi = INT8_MAX;
-      break;
-    case Type::kUint8:
-      lo = 0;
-      hi = UINT8_MAX;
-      break;
-    case Type::kInt16:
-      lo = INT16_MIN;
-      hi = INT16_MAX;
-      break;
-    case Type::kUint16:
-      lo = 0;
-      hi = UINT16_MAX;
-      break;
-    case Type::kInt32:
-      lo = INT32_MIN;
-      hi = INT32_MAX;
-      break;
-    case Type::kUint32:
-      lo = 0;
-      hi = UINT32_MAX;
-      break;
-    default:
-      return;
-  }
-  if (v < lo || v > hi)
+  struct Range {
+    std::int64_t lo, hi;
+  };
+  // Indexed by Type, integer types only.
+  static constexpr Range kRanges[] = {{INT8_MIN, INT8_MAX},   {0, UINT8_MAX},
+                                      {INT16_MIN, INT16_MAX}, {0, UINT16_MAX},
+                                      {INT32_MIN, INT32_MAX}, {0, UINT32_MAX}};
+  if (!isInteger(t)) return;
+  const Range r = kRanges[static_cast<int>(t)];
+  if (v < r.lo || v > r.hi) {
     throw ParseError{"value " + std::to_string(v) + " does not fit type " + typeName(t)};
+  }
 }
 
 class AsciiSource {
@@ -472,25 +453,9 @@ class BinarySource {
   BinarySource(const char* begin, const char* end) : begin_(begin), p_(begin), end_(end) {}
 
   double scalar(Type t) {
-    switch (t) {
-      case Type::kInt8:
-        return get<std::int8_t>();
-      case Type::kUint8:
-        return get<std::uint8_t>();
-      case Type::kInt16:
-        return get<std::int16_t>();
-      case Type::kUint16:
-        return get<std::uint16_t>();
-      case Type::kInt32:
-        return get<std::int32_t>();
-      case Type::kUint32:
-        return get<std::uint32_t>();
-      case Type::kFloat32:
-        return get<float>();
-      case Type::kFloat64:
-        return get<double>();
-    }
-    return 0.0;
+    if (t == Type::kFloat32) return get<float>();
+    if (t == Type::kFloat64) return get<double>();
+    return static_cast<double>(integer(t));
   }
 
   std::int64_t integer(Type t) {

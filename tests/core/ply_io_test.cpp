@@ -31,15 +31,7 @@ struct Bytes {
 
 /// Expects readPly to throw an InputError whose message starts with the path and contains `needle`.
 void expectReadError(const std::filesystem::path& path, const std::string& needle) {
-  try {
-    readPly(path);
-    ADD_FAILURE() << "no error reading " << path;
-  } catch (const InputError& e) {
-    const std::string what = e.what();
-    EXPECT_EQ(what.rfind(path.string() + ": ", 0), 0u) << what;
-    EXPECT_NE(what.find(needle), std::string::npos)
-        << "message: " << what << "\nexpected to contain: " << needle;
-  }
+  testing::expectInputError([&] { readPly(path); }, path, needle);
 }
 
 class PlyRoundTrip : public ::testing::TestWithParam<PlyFormat> {};

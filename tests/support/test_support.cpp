@@ -6,10 +6,14 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <gtest/gtest.h>
+
 #include <cstring>
 #include <fstream>
 #include <random>
 #include <stdexcept>
+
+#include "objscan/core/error.h"
 
 extern char** environ;
 
@@ -84,6 +88,19 @@ bool bitwiseEqual(const TriangleMesh& a, const TriangleMesh& b) {
   };
   return same(a.positions, b.positions) && same(a.normals, b.normals) && a.colors == b.colors &&
          a.triangles == b.triangles;
+}
+
+void expectInputError(const std::function<void()>& action, const fs::path& path,
+                      const std::string& needle) {
+  try {
+    action();
+    ADD_FAILURE() << "no error for " << path << "; expected one containing: " << needle;
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    EXPECT_EQ(what.rfind(path.string() + ": ", 0), 0u) << what;
+    EXPECT_NE(what.find(needle), std::string::npos)
+        << "message: " << what << "\nexpected to contain: " << needle;
+  }
 }
 
 ProcessResult runProcess(const std::vector<std::string>& argv) {

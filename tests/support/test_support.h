@@ -2,6 +2,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -36,6 +37,11 @@ TriangleMesh makeRandomMesh(std::uint32_t seed, std::size_t vertices, std::size_
 
 /// True when both meshes hold bit-identical floats (so -0.0 != 0.0) and equal everything else.
 bool bitwiseEqual(const TriangleMesh& a, const TriangleMesh& b);
+
+/// Expects `action` to throw objscan::InputError with a message that starts with "<path>: " and
+/// contains `needle` (gtest failures otherwise).
+void expectInputError(const std::function<void()>& action, const std::filesystem::path& path,
+                      const std::string& needle);
 
 /// Runs a program with arguments, stdout and stderr captured separately, no terminal attached.
 struct ProcessResult {
