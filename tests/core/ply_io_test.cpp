@@ -164,12 +164,17 @@ TEST(PlyIo, PolygonsAreFanTriangulatedAndDegenerateTrianglesDropped) {
   EXPECT_EQ(report.degenerate_dropped, 1u);  // (0, 0, 1) of the last quad
 }
 
-TEST(PlyIo, MeshLabLayoutWithAlphaIsRead) {
-  // The layout MeshLab (VCGLIB) writes for a coloured mesh with normals: binary little endian,
-  // "comment VCGLIB generated", an alpha channel after the colour, per-face flags ignored.
+TEST(PlyIo, MeshLabLayoutWithCameraQualityAndFaceColoursIsRead) {
+  // The layout of VCGLIB's PLY exporter (MeshLab's writer), with every optional part that sits
+  // around what we read: binary little endian, "comment VCGLIB generated", a camera element before
+  // the vertices (21 floats, 2 ints), vertex colour with alpha and a quality value, per-face flags
+  // and colour after vertex_indices, and an edge element at the end.
   TempDir dir;
   const TriangleMesh cube = testing::makeCube(0.2f);
   Bytes b;
+  for (int k = 0; k < 17; ++k) b.put<float>(static_cast<float>(k));
+  b.put<std::int32_t>(640).put<std::int32_t>(480);
+  for (int k = 0; k < 4; ++k) b.put<float>(0.0f);
   for (std::size_t i = 0; i < cube.positions.size(); ++i) {
     for (int k = 0; k < 3; ++k) b.put<float>(cube.positions[i][k]);
     const Eigen::Vector3f n = cube.positions[i].normalized();
@@ -177,24 +182,46 @@ TEST(PlyIo, MeshLabLayoutWithAlphaIsRead) {
     b.put<std::uint8_t>(static_cast<std::uint8_t>(i * 30))
         .put<std::uint8_t>(7)
         .put<std::uint8_t>(200)
-        .put<std::uint8_t>(255);
+        .put<std::uint8_t>(255)
+        .put<float>(0.5f);  // quality
   }
   for (const auto& t : cube.triangles) {
     b.put<std::uint8_t>(3).put<std::int32_t>(t[0]).put<std::int32_t>(t[1]).put<std::int32_t>(t[2]);
+    b.put<std::int32_t>(0);  // flags
+    b.put<std::uint8_t>(1).put<std::uint8_t>(2).put<std::uint8_t>(3).put<std::uint8_t>(4);
   }
+  b.put<std::int32_t>(0).put<std::int32_t>(1);  // one edge
+  std::string camera = "element camera 1\n";
+  for (const char* name : {"view_px", "view_py", "view_pz", "x_axisx", "x_axisy", "x_axisz",
+                           "y_axisx", "y_axisy", "y_axisz", "z_axisx", "z_axisy", "z_axisz",
+                           "focal", "scalex", "scaley", "centerx", "centery"}) {
+    camera += std::string("property float ") + name + "\n";
+  }
+  camera += "property int viewportx\nproperty int viewporty\n";
+  for (const char* name : {"k1", "k2", "k3", "k4"})
+    camera += std::string("property float ") + name + "\n";
   writeBytes(
       dir / "meshlab.ply",
-      "ply\nformat binary_little_endian 1.0\ncomment VCGLIB generated\nelement vertex 8\n"
-      "property float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\n"
-      "property float nz\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n"
-      "property uchar alpha\nelement face 12\nproperty list uchar int "
-      "vertex_indices\nend_header\n" +
+      "ply\nformat binary_little_endian 1.0\ncomment VCGLIB generated\n" + camera +
+          "element vertex 8\n"
+          "property float x\nproperty float y\nproperty float z\nproperty float nx\n"
+          "property float ny\nproperty float nz\nproperty uchar red\nproperty uchar green\n"
+          "property uchar blue\nproperty uchar alpha\nproperty float quality\n"
+          "element face 12\nproperty list uchar int vertex_indices\nproperty int flags\n"
+          "property uchar red\nproperty uchar green\nproperty uchar blue\nproperty uchar alpha\n"
+          "element edge 1\nproperty int vertex1\nproperty int vertex2\nend_header\n" +
           b.data);
-  const TriangleMesh m = readPly(dir / "meshlab.ply");
+  PlyReadReport report;
+  const TriangleMesh m = readPly(dir / "meshlab.ply", &report);
   EXPECT_EQ(m.positions, cube.positions);
   EXPECT_EQ(m.triangles, cube.triangles);
   EXPECT_EQ(m.colors[3], Rgb8(90, 7, 200));
   EXPECT_NEAR(m.normals[5].norm(), 1.0f, 1e-6f);
+  EXPECT_EQ(report.trailing_bytes, 0u);
+  const std::vector<std::string> ignored = {"camera",     "vertex.alpha", "vertex.quality",
+                                            "face.flags", "face.red",     "face.green",
+                                            "face.blue",  "face.alpha",   "edge"};
+  EXPECT_EQ(report.ignored, ignored);
 }
 
 TEST(PlyIo, EveryTruncationIsAnErrorNamingTheFile) {
