@@ -130,6 +130,19 @@ struct DepthSummary {
 
 void describeTumFolder(const fs::path& path) {
   const capture::TumFolder folder(path);
+  // Decode every frame before printing anything, so a bad image leaves no half report.
+  DepthSummary summary;
+  std::size_t with_colour = 0;
+  {
+    ProgressBar progress("reading frames", folder.size());
+    for (std::size_t i = 0; i < folder.size(); ++i) {
+      const RgbdFrame frame = folder.load(i);
+      summary.add(frame.depth_m);
+      with_colour += frame.color_rgb.empty() ? 0 : 1;
+      progress.advance();
+    }
+  }
+
   row("file", path.string());
   row("type", "recording (TUM RGB-D folder)");
   row("frames", fmt("%zu (paired by %s)", folder.size(), folder.associationSource().c_str()));
@@ -150,18 +163,6 @@ void describeTumFolder(const fs::path& path) {
             folder.groundTruthSource().c_str(), folder.groundTruth()->pathLengthM()));
   } else {
     row("ground truth", "none");
-  }
-
-  DepthSummary summary;
-  std::size_t with_colour = 0;
-  {
-    ProgressBar progress("reading frames", folder.size());
-    for (std::size_t i = 0; i < folder.size(); ++i) {
-      const RgbdFrame frame = folder.load(i);
-      summary.add(frame.depth_m);
-      with_colour += frame.color_rgb.empty() ? 0 : 1;
-      progress.advance();
-    }
   }
   row("images", fmt("all %zu frames decoded, %zu with colour", folder.size(), with_colour));
   if (summary.valid == 0) {
@@ -199,7 +200,7 @@ void runInfo(const fs::path& path) {
     return;
   }
   if (status.type() != fs::file_type::regular) throw InputError(path, "is not a regular file");
-  if (fs::file_size(path) == 0) throw InputError(path, "the file is empty");
+  if (fs::file_size(path, ec) == 0) throw InputError(path, "the file is empty");
 
   std::string ext = path.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(),

@@ -118,7 +118,13 @@ int run(int argc, char** argv) {
 
 int main(int argc, char** argv) {
   try {
-    return run(argc, argv);
+    const int code = run(argc, argv);
+    // Output piped to a full disk or a closed pipe must not look like success.
+    if (std::fflush(stdout) != 0 || std::ferror(stdout)) {
+      printError("cannot write to standard output");
+      return kExitRuntimeFailure;
+    }
+    return code;
   } catch (const objscan::InputError& e) {
     printError(e.what());
     return kExitBadInput;

@@ -25,6 +25,17 @@ struct IndexLine {
   std::vector<std::string> fields;
 };
 
+/// Whether `path` is a regular file; a path the system cannot even look at (a name too long,
+/// no permission) is an InputError rather than a filesystem_error.
+bool isFile(const fs::path& path) {
+  std::error_code ec;
+  const fs::file_status status = fs::status(path, ec);
+  if (ec && ec != std::errc::no_such_file_or_directory && ec != std::errc::not_a_directory) {
+    throw InputError(path, "cannot access: " + ec.message());
+  }
+  return status.type() == fs::file_type::regular;
+}
+
 std::vector<IndexLine> readIndex(const fs::path& file) {
   const std::string text = readWholeFile(file);
   std::vector<IndexLine> lines;
@@ -70,30 +81,57 @@ std::vector<std::pair<double, fs::path>> readStampedFiles(const fs::path& file) 
     }
     entries.emplace_back(parseStamp(file, line, 0), line.fields[1]);
   }
+  // TUM's own files are in time order; pairing by time needs that, so make sure of it.
+  std::stable_sort(entries.begin(), entries.end(),
+                   [](const auto& a, const auto& b) { return a.first < b.first; });
   return entries;
+}
+
+/// Reads and decodes an image file. A PNG or JPEG must end with its end marker (IEND chunk, EOI):
+/// that catches truncated files before the codec sees them, so the user gets one clear error
+/// instead of the codec's own messages on stderr.
+cv::Mat readImage(const fs::path& path, int flags) {
+  const std::string bytes = readWholeFile(path);
+  if (bytes.empty()) throw InputError(path, "the image file is empty");
+  static constexpr std::string_view kPngMagic("\x89PNG\r\n\x1a\n", 8);
+  static constexpr std::string_view kPngEnd("IEND\xae\x42\x60\x82", 8);
+  const std::string_view view(bytes);
+  if (view.starts_with(kPngMagic) && !view.ends_with(kPngEnd)) {
+    throw InputError(path, "the PNG file is truncated (it has no IEND end chunk)");
+  }
+  if (view.starts_with("\xff\xd8") && !view.ends_with("\xff\xd9")) {
+    throw InputError(path, "the JPEG file is truncated (it has no end-of-image marker)");
+  }
+  cv::Mat image = cv::imdecode(
+      cv::Mat(1, static_cast<int>(bytes.size()), CV_8UC1, const_cast<char*>(bytes.data())), flags);
+  if (image.empty()) throw InputError(path, "cannot be decoded as a PNG or JPEG image");
+  return image;
 }
 
 }  // namespace
 
 bool TumFolder::looksLikeTumFolder(const fs::path& dir) {
   for (const char* name : {"depth.txt", "associations.txt", "associate.txt"}) {
-    if (fs::is_regular_file(dir / name)) return true;
+    if (isFile(dir / name)) return true;
   }
   return false;
 }
 
 TumFolder::TumFolder(const fs::path& dir) : dir_(dir) {
-  if (!fs::exists(dir)) throw InputError(dir, "no such file or directory");
-  if (!fs::is_directory(dir)) throw InputError(dir, "is not a folder");
+  std::error_code ec;
+  const fs::file_type type = fs::status(dir, ec).type();
+  if (type == fs::file_type::not_found) throw InputError(dir, "no such file or directory");
+  if (ec) throw InputError(dir, "cannot access: " + ec.message());
+  if (type != fs::file_type::directory) throw InputError(dir, "is not a folder");
   if (!looksLikeTumFolder(dir)) {
     throw InputError(dir,
                      "is a folder but not a TUM-format recording (it has no depth.txt, "
                      "associations.txt or associate.txt)");
   }
 
-  if (fs::is_regular_file(dir / "associations.txt")) {
+  if (isFile(dir / "associations.txt")) {
     readAssociations(dir / "associations.txt");
-  } else if (fs::is_regular_file(dir / "associate.txt")) {
+  } else if (isFile(dir / "associate.txt")) {
     readAssociations(dir / "associate.txt");
   } else {
     associateByTime();
@@ -102,15 +140,15 @@ TumFolder::TumFolder(const fs::path& dir) : dir_(dir) {
 
   for (const TumFrameFiles& f : frames_) {
     for (const fs::path* p : {&f.depth, &f.rgb}) {
-      if (!p->empty() && !fs::is_regular_file(dir_ / *p)) {
+      if (!p->empty() && !isFile(dir_ / *p)) {
         throw InputError(dir_ / *p, "listed in " + association_source_ + " but missing");
       }
     }
   }
 
   const fs::path intrinsics_file = dir / "intrinsics.json";
-  if (fs::exists(intrinsics_file)) {
-    intrinsics_ = readIntrinsicsJson(intrinsics_file);
+  if (isFile(intrinsics_file)) {
+    intrinsics_ = readIntrinsicsJson(intrinsics_file);  // also proves the file parses
     intrinsics_from_file_ = true;
     const auto j = nlohmann::json::parse(readWholeFile(intrinsics_file));
     if (j.contains("depth_factor")) {
@@ -122,7 +160,7 @@ TumFolder::TumFolder(const fs::path& dir) : dir_(dir) {
     }
   }
 
-  if (fs::is_regular_file(dir / "groundtruth.txt")) {
+  if (isFile(dir / "groundtruth.txt")) {
     ground_truth_ = readTumTrajectory(dir / "groundtruth.txt");
     ground_truth_source_ = "groundtruth.txt";
   }
@@ -178,7 +216,7 @@ void TumFolder::readAssociations(const fs::path& file) {
 void TumFolder::associateByTime() {
   const auto depth = readStampedFiles(dir_ / "depth.txt");
   std::vector<std::pair<double, fs::path>> rgb;
-  if (fs::is_regular_file(dir_ / "rgb.txt")) rgb = readStampedFiles(dir_ / "rgb.txt");
+  if (isFile(dir_ / "rgb.txt")) rgb = readStampedFiles(dir_ / "rgb.txt");
   association_source_ =
       rgb.empty() ? "depth.txt (no colour)" : "depth.txt + rgb.txt (nearest time stamps)";
 
@@ -223,9 +261,7 @@ void TumFolder::associateByTime() {
 RgbdFrame TumFolder::load(std::size_t i) const {
   const TumFrameFiles& f = frames_.at(i);
   const fs::path depth_path = dir_ / f.depth;
-  const cv::Mat raw = cv::imread(depth_path.string(), cv::IMREAD_UNCHANGED);
-  if (raw.empty())
-    throw InputError(depth_path, "cannot be decoded as an image (truncated or not a PNG?)");
+  const cv::Mat raw = readImage(depth_path, cv::IMREAD_UNCHANGED);
   if (raw.type() != CV_16UC1) {
     throw InputError(depth_path, "depth must be a single-channel 16-bit PNG (value / " +
                                      std::to_string(static_cast<int>(depth_factor_)) +
@@ -246,9 +282,7 @@ RgbdFrame TumFolder::load(std::size_t i) const {
 
   if (!f.rgb.empty()) {
     const fs::path rgb_path = dir_ / f.rgb;
-    const cv::Mat bgr = cv::imread(rgb_path.string(), cv::IMREAD_COLOR);
-    if (bgr.empty())
-      throw InputError(rgb_path, "cannot be decoded as an image (truncated or not a PNG/JPEG?)");
+    const cv::Mat bgr = readImage(rgb_path, cv::IMREAD_COLOR);
     if (bgr.size() != raw.size())
       throw InputError(rgb_path, "colour and depth images differ in size");
     cv::cvtColor(bgr, frame.color_rgb, cv::COLOR_BGR2RGB);

@@ -31,8 +31,12 @@ fs::path temporarySibling(const fs::path& path) {
 
 void writeFileAtomically(const fs::path& path, std::string_view bytes) {
   const fs::path tmp = temporarySibling(path);
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+  // A replaced file keeps its permissions; a new one gets 0666 less the umask, as open() gives.
+  struct stat existing {};
+  const bool replacing = ::stat(path.c_str(), &existing) == 0 && S_ISREG(existing.st_mode);
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
   if (fd < 0) throw OutputError(path, "cannot create a file there: " + errnoText());
+  if (replacing) ::fchmod(fd, existing.st_mode & 07777);
 
   auto fail = [&](const std::string& what) {
     const std::string reason = what + ": " + errnoText();
@@ -62,6 +66,13 @@ void writeFileAtomically(const fs::path& path, std::string_view bytes) {
     const std::string reason = "cannot rename the finished file into place: " + errnoText();
     ::unlink(tmp.c_str());
     throw OutputError(path, reason);
+  }
+  // Make the rename itself durable. Best effort: some file systems refuse fsync on directories.
+  const fs::path parent = path.has_parent_path() ? path.parent_path() : fs::path(".");
+  const int dir_fd = ::open(parent.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (dir_fd >= 0) {
+    ::fsync(dir_fd);
+    ::close(dir_fd);
   }
 }
 

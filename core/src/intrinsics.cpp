@@ -41,7 +41,7 @@ Intrinsics readIntrinsicsJson(const std::filesystem::path& path) {
   nlohmann::json j;
   try {
     j = nlohmann::json::parse(text);
-  } catch (const nlohmann::json::parse_error& e) {
+  } catch (const nlohmann::json::exception& e) {  // syntax errors, numbers out of range
     throw InputError(path, std::string("not valid JSON: ") + e.what());
   }
   if (!j.is_object())

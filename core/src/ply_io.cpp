@@ -185,7 +185,14 @@ ParsedHeader parseHeader(std::string_view bytes) {
     if (w.empty()) continue;
     const std::string_view key = w[0];
     if (key == "end_header") {
+      if (w.size() != 1) throw ParseError{where + "unexpected text after 'end_header'"};
       if (!have_format) throw ParseError{where + "no 'format' line before end_header"};
+      for (const Elem& e : header.elements) {
+        if (e.props.empty() && e.count > 0) {
+          throw ParseError{"element '" + e.name + "' declares " + std::to_string(e.count) +
+                           " rows but no properties"};
+        }
+      }
       header.body_offset = pos;
       return header;
     }
@@ -193,6 +200,7 @@ ParsedHeader parseHeader(std::string_view bytes) {
       const std::size_t start = line.find(key) + key.size();
       header.comments.emplace_back(trim(line.substr(start)));
     } else if (key == "format") {
+      if (have_format) throw ParseError{where + "a second 'format' line"};
       if (w.size() != 3)
         throw ParseError{where +
                          "expected 'format <ascii|binary_little_endian|binary_big_endian> 1.0'"};
@@ -389,15 +397,20 @@ class AsciiSource {
     return integerValue(token(), t);
   }
 
+  /// Whether `values` more values could still be in the file: each takes at least a character
+  /// and a separator. Checked before anything is sized by a count read from the file.
+  bool canHold(std::uint64_t values, Type) const {
+    return values <= static_cast<std::uint64_t>(end_ - p_) / 2;
+  }
+
   /// After the last element only whitespace may follow.
-  std::size_t finish() {
+  void finish() {
     while (p_ != end_ && isSpace(*p_)) ++p_;
     if (p_ != end_) {
       throw ParseError{
           "line " + std::to_string(line_) +
           ": unexpected data after the last element (do the header's counts match the data?)"};
     }
-    return 0;
   }
 
   std::string position() const { return "line " + std::to_string(line_); }
@@ -421,24 +434,20 @@ class AsciiSource {
   void parseNumber(std::string_view tok, T& v) {
     const char* b = tok.data();
     const char* e = b + tok.size();
-    if (*b == '+') ++b;  // from_chars takes no leading '+'
+    if (*b == '+' && e - b > 1 && b[1] != '-' && b[1] != '+') ++b;  // from_chars takes no '+'
     const auto [ptr, ec] = std::from_chars(b, e, v);
     if (ptr != e || (ec != std::errc() && ec != std::errc::result_out_of_range)) {
-      throw ParseError{position() + ": '" + std::string(tok.substr(0, 40)) + "' is not a number"};
+      throw ParseError{"'" + std::string(tok.substr(0, 40)) + "' is not a number"};
     }
     if (ec == std::errc::result_out_of_range) {
-      throw ParseError{position() + ": '" + std::string(tok.substr(0, 40)) + "' is out of range"};
+      throw ParseError{"'" + std::string(tok.substr(0, 40)) + "' is out of range"};
     }
   }
 
   std::int64_t integerValue(std::string_view tok, Type t) {
     std::int64_t v = 0;
     parseNumber(tok, v);
-    try {
-      checkRange(v, t);
-    } catch (const ParseError& e) {
-      throw ParseError{position() + ": " + e.what};
-    }
+    checkRange(v, t);
     return v;
   }
 
@@ -483,8 +492,17 @@ class BinarySource {
     p_ += bytes;
   }
 
-  /// Bytes left after the last element; ignored, but reported.
-  std::size_t finish() const { return static_cast<std::size_t>(end_ - p_); }
+  bool canHold(std::uint64_t values, Type t) const {
+    return values <= static_cast<std::uint64_t>(end_ - p_) / sizeOf(t);
+  }
+
+  /// After the last element nothing may follow: extra bytes mean the header's counts are wrong.
+  void finish() const {
+    if (p_ != end_) {
+      throw ParseError{std::to_string(end_ - p_) +
+                       " bytes follow the last element (do the header's counts match the data?)"};
+    }
+  }
 
   std::string position() const { return "byte " + std::to_string(p_ - begin_) + " of the data"; }
 
@@ -513,10 +531,13 @@ class BinarySource {
 // ---------------------------------------------------------------------------------------------
 // Body
 
+/// Colours: uchar as is, ushort scaled from 0..65535, floating point from 0..1; values outside
+/// the range are clamped.
 std::uint8_t colorByte(double v, Type t) {
-  if (t == Type::kFloat32 || t == Type::kFloat64) v *= 255.0;  // floating colours are 0..1
-  if (!(v >= 0.0)) return 0;
-  return static_cast<std::uint8_t>(std::lround(std::min(v, 255.0)));
+  if (std::isnan(v)) throw ParseError{"a colour value is NaN"};
+  if (t == Type::kFloat32 || t == Type::kFloat64) v *= 255.0;
+  if (t == Type::kUint16) v /= 257.0;
+  return static_cast<std::uint8_t>(std::lround(std::clamp(v, 0.0, 255.0)));
 }
 
 template <class Source>
@@ -565,6 +586,11 @@ void readBody(Source& in, const ParsedHeader& header, TriangleMesh& mesh, PlyRea
           if (p.list) {
             const std::int64_t n = in.integer(p.count_type);
             if (n < 0) throw ParseError{"negative list length " + std::to_string(n)};
+            if (!in.canHold(static_cast<std::uint64_t>(n), p.type)) {
+              throw ParseError{
+                  "list length " + std::to_string(n) +
+                  " is more than the rest of the file can hold (truncated or corrupt?)"};
+            }
             if (p.slot != Slot::kIndices) {
               for (std::int64_t k = 0; k < n; ++k) in.scalar(p.type);
               continue;
@@ -637,7 +663,7 @@ void readBody(Source& in, const ParsedHeader& header, TriangleMesh& mesh, PlyRea
                        prop + " (" + in.position() + "): " + err.what};
     }
   }
-  report.trailing_bytes = in.finish();
+  in.finish();
 }
 
 PlyHeader publicHeader(const ParsedHeader& parsed) {
@@ -725,10 +751,6 @@ TriangleMesh readPly(const fs::path& path, PlyReadReport* report_out) {
   if (report.degenerate_dropped > 0) {
     log::warning(path.string() + ": dropped " + std::to_string(report.degenerate_dropped) +
                  " degenerate triangle(s) that repeat a vertex");
-  }
-  if (report.trailing_bytes > 0) {
-    log::warning(path.string() + ": ignored " + std::to_string(report.trailing_bytes) +
-                 " byte(s) after the last element");
   }
   if (report_out) *report_out = std::move(report);
   return mesh;

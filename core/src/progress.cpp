@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <exception>
 #include <string>
 
 #include "objscan/core/log.h"
@@ -28,9 +29,19 @@ ProgressBar::ProgressBar(std::string label, std::size_t total, Style style, std:
       silent_(!log::enabled(log::Level::kInfo)),
       out_(out),
       start_(Clock::now()),
-      last_draw_(start_) {}
+      last_draw_(start_),
+      uncaught_at_start_(std::uncaught_exceptions()) {}
 
-ProgressBar::~ProgressBar() { finish(); }
+ProgressBar::~ProgressBar() {
+  if (std::uncaught_exceptions() > uncaught_at_start_) {
+    if (!finished_.exchange(true) && !silent_ && redraw_ && drawn_) {
+      std::fputs("\r\033[K", out_);
+      std::fflush(out_);
+    }
+    return;
+  }
+  finish();
+}
 
 void ProgressBar::advance(std::size_t n) {
   const std::size_t now_done = done_.fetch_add(n) + n;

@@ -95,6 +95,9 @@ Trajectory readTumTrajectory(const std::filesystem::path& path) {
     sp.stamp_s = v[0];
     sp.T_W_C = poseFromTranslationQuaternion(Eigen::Vector3d(v[1], v[2], v[3]).cast<float>(),
                                              q.normalized().cast<float>());
+    if (!sp.T_W_C.translation().allFinite()) {
+      throw InputError(path, where + "a coordinate is too large (more than 3.4e38 m)");
+    }
     trajectory.poses.push_back(sp);
   }
   if (trajectory.empty()) throw InputError(path, "contains no poses");

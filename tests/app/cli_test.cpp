@@ -105,6 +105,40 @@ TEST(Cli, InfoOnShippedRecordingAndTrajectory) {
   EXPECT_NE(r.out.find("poses         10"), std::string::npos) << r.out;
 }
 
+TEST(Cli, InfoOnRecordingWithBadImageGivesOneErrorLineAndNoReport) {
+  TempDir dir;
+  const std::filesystem::path shipped =
+      std::filesystem::path(OBJSCAN_SOURCE_DIR) / "recordings" / "tum_fr2_desk_10";
+  std::filesystem::copy(shipped, dir / "rec", std::filesystem::copy_options::recursive);
+  // Cut the 6th depth image in half: five frames decode, then the error.
+  const std::string sixth = testing::lines(testing::readBytes(dir / "rec" / "associations.txt"))[5];
+  const std::string depth_rel = sixth.substr(sixth.rfind(' ') + 1);
+  const auto depth = dir / "rec" / depth_rel;
+  writeBytes(depth, testing::readBytes(depth).substr(0, 5000));
+
+  const ProcessResult r = objscan({"info", (dir / "rec").string()});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.out, "") << "no half report on stdout";
+  EXPECT_EQ(r.err.find("libpng"), std::string::npos) << r.err;
+  const auto ls = testing::lines(r.err);
+  ASSERT_FALSE(ls.empty());
+  // Progress lines may come first; the error is the last line and the only one of its kind.
+  EXPECT_EQ(ls.back(), "objscan: error: " + depth.string() +
+                           ": the PNG file is truncated (it has no IEND end chunk)");
+  std::size_t errors = 0;
+  for (const auto& l : ls) errors += l.rfind("objscan: error: ", 0) == 0 ? 1 : 0;
+  EXPECT_EQ(errors, 1u);
+  EXPECT_EQ(r.err.find(" in 0."), std::string::npos) << "no completion line for a failed stage";
+}
+
+TEST(Cli, UnwritableStandardOutputIsARuntimeFailure) {
+  const std::string cmd = std::string(OBJSCAN_EXE) + " info '" + OBJSCAN_SOURCE_DIR +
+                          "/recordings/tum_fr2_desk_10/groundtruth.txt' > /dev/full";
+  const ProcessResult r = testing::runProcess({"/bin/sh", "-c", cmd});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.err, "objscan: error: cannot write to standard output\n");
+}
+
 TEST(Cli, InfoOnBadInputGivesOneLineAndExitTwo) {
   TempDir dir;
   const TriangleMesh mesh = testing::makeRandomMesh(2, 10, 8);

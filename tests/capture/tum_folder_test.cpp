@@ -60,8 +60,9 @@ TEST(TumFolder, DepthIsRawOverFactorAndColourIsRgbOrder) {
 
 TEST(TumFolder, PairsDepthWithNearestColourWithinTwentyMilliseconds) {
   TempDir dir;
-  // Frame 1's colour is 25 ms late: too far, so that depth frame is skipped like associate.py does.
-  makeFolder(dir.path(), 3, {0.005, 0.025, -0.01});
+  // Frame 1's colour is 25 ms late: too far from depth 1 (and depth 2 has its own colour 4 ms
+  // away, nearer than frame 1's at 8 ms), so depth 1 is skipped as associate.py does.
+  makeFolder(dir.path(), 3, {0.005, 0.025, -0.004});
   const TumFolder folder(dir.path());
   ASSERT_EQ(folder.size(), 2u);
   EXPECT_EQ(folder.frames()[0].rgb, "rgb/0.png");
@@ -88,6 +89,34 @@ TEST(TumFolder, AssociationFileInEitherColumnOrderWithGroundTruth) {
   EXPECT_EQ(folder.groundTruth()->poses[1].T_W_C.translation(), Eigen::Vector3f(1, 2, 3));
 }
 
+TEST(TumFolder, RgbFirstAssociationsAndUnsortedIndexFiles) {
+  TempDir dir;
+  makeFolder(dir.path(), 3, {0.0, 0.004, 0.0});
+  // associate.py rgb.txt depth.txt order, as TUM's own tools write it.
+  writeBytes(dir / "associations.txt",
+             "100.000000 rgb/0.png 100.000000 depth/0.png\n"
+             "100.037333 rgb/1.png 100.033333 depth/1.png\n");
+  TumFolder folder(dir.path());
+  ASSERT_EQ(folder.size(), 2u);
+  EXPECT_EQ(folder.frames()[1].rgb, "rgb/1.png");
+  EXPECT_EQ(folder.frames()[1].depth, "depth/1.png");
+  EXPECT_NEAR(folder.frames()[1].rgb_stamp_s - folder.frames()[1].depth_stamp_s, 0.004, 1e-9);
+
+  // Without associations, an rgb.txt in reverse order pairs exactly as a sorted one does.
+  std::filesystem::remove(dir / "associations.txt");
+  const std::string rgb = testing::readBytes(dir / "rgb.txt");
+  auto ls = testing::lines(rgb);
+  std::string reversed;
+  for (auto it = ls.rbegin(); it != ls.rend(); ++it) reversed += *it + "\n";
+  writeBytes(dir / "rgb.txt", reversed);
+  const TumFolder unsorted(dir.path());
+  ASSERT_EQ(unsorted.size(), 3u);
+  for (std::size_t i = 0; i < 3; ++i) {
+    EXPECT_EQ(unsorted.frames()[i].rgb, "rgb/" + std::to_string(i) + ".png");
+    EXPECT_EQ(unsorted.frames()[i].depth, "depth/" + std::to_string(i) + ".png");
+  }
+}
+
 TEST(TumFolder, BadFoldersAndImagesAreInputErrors) {
   TempDir dir;
   EXPECT_THROW(TumFolder{dir.path()}, InputError) << "empty folder";
@@ -102,10 +131,22 @@ TEST(TumFolder, BadFoldersAndImagesAreInputErrors) {
   const auto depth1 = dir / "depth" / "1.png";
   testing::expectInputError([&] { folder.load(1); }, depth1, "must be a single-channel 16-bit PNG");
   writeBytes(dir / "depth" / "1.png", testing::readBytes(dir / "depth" / "0.png").substr(0, 40));
-  testing::expectInputError([&] { folder.load(1); }, depth1, "cannot be decoded as an image");
+  testing::expectInputError([&] { folder.load(1); }, depth1,
+                            "the PNG file is truncated (it has no IEND end chunk)");
+  writeBytes(depth1, "\x89PNG\r\n\x1a\n garbage IEND\xae\x42\x60\x82");
+  testing::expectInputError([&] { folder.load(1); }, depth1, "cannot be decoded as a PNG or JPEG");
   cv::imwrite((dir / "depth" / "1.png").string(), cv::Mat(6, 8, CV_16UC1, cv::Scalar(5)));
   testing::expectInputError([&] { folder.load(1); }, depth1,
                             "image is 8x6 but the intrinsics are for 4x3");
+}
+
+TEST(TumFolder, UnreachableListedFileIsAnInputError) {
+  TempDir dir;
+  makeFolder(dir.path(), 1, {0.0});
+  const std::string long_name = "depth/" + std::string(300, 'x') + ".png";
+  writeBytes(dir / "associations.txt", "100.0 rgb/0.png 100.0 " + long_name + "\n");
+  testing::expectInputError([&] { TumFolder folder(dir.path()); }, dir / long_name,
+                            "cannot access: File name too long");
 }
 
 TEST(TumFolder, ShippedRecordingOpensWithItsCalibrationAndGroundTruth) {

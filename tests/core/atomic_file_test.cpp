@@ -25,6 +25,17 @@ TEST(AtomicFile, WritesAndReplacesWholeContents) {
   EXPECT_EQ(entries(dir.path()), 1u);
 }
 
+TEST(AtomicFile, ReplacedFileKeepsItsPermissions) {
+  testing::TempDir dir;
+  writeFileAtomically(dir / "f", "first");
+  std::filesystem::permissions(
+      dir / "f", std::filesystem::perms::owner_read | std::filesystem::perms::owner_write);
+  writeFileAtomically(dir / "f", "second");
+  EXPECT_EQ(std::filesystem::status(dir / "f").permissions(),
+            std::filesystem::perms::owner_read | std::filesystem::perms::owner_write);
+  EXPECT_EQ(readWholeFile(dir / "f"), "second");
+}
+
 TEST(AtomicFile, FailedWriteLeavesTheOldFileAndNoTemporary) {
   // A file-size limit makes write() fail with EFBIG part-way, as a full disk would, and works
   // for root too (directory permissions do not).

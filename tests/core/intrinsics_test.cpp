@@ -50,6 +50,11 @@ TEST(Intrinsics, BadJsonFilesAreInputErrors) {
   testing::writeBytes(dir / "broken.json", "{\"fx\": 500,");
   testing::expectInputError([&] { readIntrinsicsJson(dir / "broken.json"); }, dir / "broken.json",
                             "not valid JSON");
+  testing::writeBytes(
+      dir / "overflow.json",
+      R"({"fx": 1e400, "fy": 500, "cx": 320, "cy": 240, "width": 640, "height": 480})");
+  testing::expectInputError([&] { readIntrinsicsJson(dir / "overflow.json"); },
+                            dir / "overflow.json", "not valid JSON");
   testing::writeBytes(dir / "missing.json",
                       R"({"fx": 500, "fy": 500, "cx": 320, "cy": 240, "width": 640})");
   testing::expectInputError([&] { readIntrinsicsJson(dir / "missing.json"); }, dir / "missing.json",

@@ -67,6 +67,8 @@ TEST(Trajectory, BadFilesGiveErrorsWithLineNumbers) {
   expectReadError(dir / "back.txt", "line 2: time stamp");
   writeBytes(dir / "quat.txt", "1 0 0 0 0 0 0 2\n");
   expectReadError(dir / "quat.txt", "has norm 2");
+  writeBytes(dir / "huge.txt", "1 1e39 0 0 0 0 0 1\n");
+  expectReadError(dir / "huge.txt", "line 1: a coordinate is too large");
   writeBytes(dir / "comments.txt", "# nothing\n");
   expectReadError(dir / "comments.txt", "contains no poses");
   writeBytes(dir / "empty.txt", "");

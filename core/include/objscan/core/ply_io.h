@@ -37,7 +37,6 @@ struct PlyReadReport {
   std::size_t file_bytes = 0;
   std::size_t faces = 0;               ///< polygons in the file (before fan triangulation)
   std::size_t degenerate_dropped = 0;  ///< triangles dropped because a vertex repeats
-  std::size_t trailing_bytes = 0;      ///< bytes after the last element (binary), ignored
   std::vector<std::string> ignored;    ///< "vertex.s", "material", ... not read into the mesh
 };
 
@@ -49,8 +48,9 @@ struct PlyReadReport {
 ///
 /// Throws InputError naming the file and the problem for anything that is not a complete, valid
 /// PLY mesh: missing/empty/directory, bad magic or header, truncation anywhere (an ASCII file must
-/// end with a newline after its last value), counts larger than the file can hold, unparsable
-/// values, face indices out of range, NaN or infinite coordinates/normals.
+/// end with a newline after its last value), counts or list lengths larger than the file can hold,
+/// data left over after the last element, unparsable values, face indices out of range, NaN or
+/// infinite coordinates/normals, NaN colours.
 TriangleMesh readPly(const std::filesystem::path& path, PlyReadReport* report = nullptr);
 
 /// Writes x y z [nx ny nz] [red green blue] as float/uchar and faces as `list uchar int

@@ -30,7 +30,9 @@ class ProgressBar {
   ProgressBar& operator=(const ProgressBar&) = delete;
 
   void advance(std::size_t n = 1);
-  /// Prints the final line ("label: 100 % (N) in T s"). Called by the destructor if not called.
+  /// Prints the final line ("label: 100 % (N) in T s"). Called by the destructor if not called,
+  /// except while an exception unwinds the stage: then a redrawn bar is cleared and nothing is
+  /// printed, so the error that follows stands alone.
   void finish();
 
   std::size_t done() const { return done_.load(); }
@@ -50,6 +52,7 @@ class ProgressBar {
   std::chrono::steady_clock::time_point last_draw_;
   int last_decile_ = -1;
   bool drawn_ = false;
+  int uncaught_at_start_ = 0;
 };
 
 }  // namespace objscan
