@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <stdexcept>
 #include <string>
 #include <thread>
 #include <vector>
@@ -53,6 +54,29 @@ TEST(ProgressBar, RedrawStyleRewritesOneLineAndEndsWithNewline) {
   EXPECT_EQ(testing::lines(out).size(), 1u) << "one terminal line, redrawn";
   EXPECT_NE(out.find("meshing:  30% (3/10) in "), std::string::npos);
   EXPECT_EQ(out.back(), '\n');
+}
+
+TEST(ProgressBar, AFailedStagePrintsNoCompletionLine) {
+  const std::string lines_out = capture([](std::FILE* f) {
+    try {
+      ProgressBar bar("decoding", 100, ProgressBar::Style::kLines, f);
+      bar.advance(5);
+      throw std::runtime_error("bad frame");
+    } catch (const std::runtime_error&) {
+    }
+  });
+  EXPECT_EQ(lines_out.find(" in "), std::string::npos) << lines_out;
+  const std::string redraw_out = capture([](std::FILE* f) {
+    try {
+      ProgressBar bar("decoding", 100, ProgressBar::Style::kRedraw, f);
+      bar.advance(5);
+      throw std::runtime_error("bad frame");
+    } catch (const std::runtime_error&) {
+    }
+  });
+  // The bar is cleared so the error message that follows starts on a clean line.
+  EXPECT_TRUE(redraw_out.ends_with("\r\033[K")) << redraw_out;
+  EXPECT_EQ(redraw_out.find(" in "), std::string::npos);
 }
 
 TEST(ProgressBar, UnknownTotalShowsCounts) {
