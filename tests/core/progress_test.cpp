@@ -57,23 +57,19 @@ TEST(ProgressBar, RedrawStyleRewritesOneLineAndEndsWithNewline) {
 }
 
 TEST(ProgressBar, AFailedStagePrintsNoCompletionLine) {
-  const std::string lines_out = capture([](std::FILE* f) {
-    try {
-      ProgressBar bar("decoding", 100, ProgressBar::Style::kLines, f);
-      bar.advance(5);
-      throw std::runtime_error("bad frame");
-    } catch (const std::runtime_error&) {
-    }
-  });
+  auto failedStage = [](ProgressBar::Style style) {
+    return capture([style](std::FILE* f) {
+      try {
+        ProgressBar bar("decoding", 100, style, f);
+        bar.advance(5);
+        throw std::runtime_error("bad frame");
+      } catch (const std::runtime_error&) {
+      }
+    });
+  };
+  const std::string lines_out = failedStage(ProgressBar::Style::kLines);
   EXPECT_EQ(lines_out.find(" in "), std::string::npos) << lines_out;
-  const std::string redraw_out = capture([](std::FILE* f) {
-    try {
-      ProgressBar bar("decoding", 100, ProgressBar::Style::kRedraw, f);
-      bar.advance(5);
-      throw std::runtime_error("bad frame");
-    } catch (const std::runtime_error&) {
-    }
-  });
+  const std::string redraw_out = failedStage(ProgressBar::Style::kRedraw);
   // The bar is cleared so the error message that follows starts on a clean line.
   EXPECT_TRUE(redraw_out.ends_with("\r\033[K")) << redraw_out;
   EXPECT_EQ(redraw_out.find(" in "), std::string::npos);
