@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <set>
 #include <string>
 
 #include "objscan/capture/tum_folder.h"
@@ -64,6 +65,14 @@ void describeMesh(const fs::path& path) {
                   bytesText(report.file_bytes).c_str()));
   row("vertices", fmt("%zu (normals: %s, colours: %s)", mesh.positions.size(),
                       mesh.hasNormals() ? "yes" : "no", mesh.hasColors() ? "yes" : "no"));
+  if (mesh.hasLabels()) {
+    std::set<std::int32_t> ids(mesh.labels.begin(), mesh.labels.end());
+    ids.erase(0);
+    const auto labelled = static_cast<std::size_t>(std::count_if(
+        mesh.labels.begin(), mesh.labels.end(), [](std::int32_t l) { return l != 0; }));
+    row("objects",
+        fmt("%zu object ids on %zu vertices (object_id; 0 = not an object)", ids.size(), labelled));
+  }
   if (report.faces == 0) {
     row("faces", "0 (a point cloud)");
   } else if (report.faces == mesh.triangles.size()) {

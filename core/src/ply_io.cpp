@@ -114,6 +114,7 @@ enum class Slot : std::uint8_t {
   kRed,
   kGreen,
   kBlue,
+  kLabel,
   kIndices
 };
 
@@ -272,6 +273,7 @@ void assignSlots(ParsedHeader& header, PlyReadReport& report) {
       {"diffuse_red", Slot::kRed},
       {"diffuse_green", Slot::kGreen},
       {"diffuse_blue", Slot::kBlue},
+      {"object_id", Slot::kLabel},
   };
   bool have_vertex = false;
   for (Elem& e : header.elements) {
@@ -290,6 +292,11 @@ void assignSlots(ParsedHeader& header, PlyReadReport& report) {
       if (!seen[static_cast<int>(Slot::kX)] || !seen[static_cast<int>(Slot::kY)] ||
           !seen[static_cast<int>(Slot::kZ)]) {
         throw ParseError{"the vertex element lacks one of the properties x, y, z"};
+      }
+      for (const Prop& p : e.props) {
+        if (p.slot == Slot::kLabel && !isInteger(p.type)) {
+          throw ParseError{"vertex property 'object_id' must have an integer type"};
+        }
       }
       // Normals and colours are taken only when all three components are there.
       const bool normals = seen[static_cast<int>(Slot::kNx)] && seen[static_cast<int>(Slot::kNy)] &&
@@ -550,15 +557,17 @@ void readBody(Source& in, const ParsedHeader& header, TriangleMesh& mesh, PlyRea
   for (const Elem& e : header.elements) {
     const bool is_vertex = e.name == "vertex";
     const bool is_face = e.name == "face";
-    bool normals = false, colors = false;
+    bool normals = false, colors = false, labels = false;
     for (const Prop& p : e.props) {
       normals |= p.slot == Slot::kNx;
       colors |= p.slot == Slot::kRed;
+      labels |= p.slot == Slot::kLabel;
     }
     if (is_vertex) {
       mesh.positions.resize(e.count);
       if (normals) mesh.normals.resize(e.count);
       if (colors) mesh.colors.resize(e.count);
+      if (labels) mesh.labels.resize(e.count);
     }
     if (is_face) mesh.triangles.reserve(e.count);
 
@@ -649,6 +658,12 @@ void readBody(Source& in, const ParsedHeader& header, TriangleMesh& mesh, PlyRea
               break;
             case Slot::kBlue:
               mesh.colors[row][2] = colorByte(v, p.type);
+              break;
+            case Slot::kLabel:
+              if (v < INT32_MIN || v > INT32_MAX) {
+                throw ParseError{"object_id " + std::to_string(v) + " does not fit a 32-bit int"};
+              }
+              mesh.labels[row] = static_cast<std::int32_t>(v);
               break;
             case Slot::kIgnore:
             case Slot::kIndices:
@@ -760,6 +775,7 @@ void writePly(const fs::path& path, const TriangleMesh& mesh, PlyFormat format) 
   mesh.validate();
   const bool normals = mesh.hasNormals();
   const bool colors = mesh.hasColors();
+  const bool labels = mesh.hasLabels();
 
   std::string out;
   out += "ply\nformat ";
@@ -769,6 +785,7 @@ void writePly(const fs::path& path, const TriangleMesh& mesh, PlyFormat format) 
   out += "property float x\nproperty float y\nproperty float z\n";
   if (normals) out += "property float nx\nproperty float ny\nproperty float nz\n";
   if (colors) out += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
+  if (labels) out += "property int object_id\n";
   out += "element face " + std::to_string(mesh.triangles.size()) + "\n";
   out += "property list uchar int vertex_indices\nend_header\n";
 
@@ -798,6 +815,10 @@ void writePly(const fs::path& path, const TriangleMesh& mesh, PlyFormat format) 
           putText(out, static_cast<int>(c[k]));
         }
       }
+      if (labels) {
+        out += ' ';
+        putText(out, mesh.labels[i]);
+      }
       out += '\n';
     }
     for (const auto& t : mesh.triangles) {
@@ -811,13 +832,14 @@ void writePly(const fs::path& path, const TriangleMesh& mesh, PlyFormat format) 
   } else {
     const bool swap =
         (format == PlyFormat::kBinaryLittleEndian) != (std::endian::native == std::endian::little);
-    out.reserve(out.size() + n * (12 + (normals ? 12 : 0) + (colors ? 3 : 0)) +
+    out.reserve(out.size() + n * (12 + (normals ? 12 : 0) + (colors ? 3 : 0) + (labels ? 4 : 0)) +
                 mesh.triangles.size() * 13);
     for (std::size_t i = 0; i < n; ++i) {
       for (int k = 0; k < 3; ++k) putBinary(out, mesh.positions[i][k], swap);
       if (normals)
         for (int k = 0; k < 3; ++k) putBinary(out, mesh.normals[i][k], swap);
       if (colors) out.append(reinterpret_cast<const char*>(mesh.colors[i].data()), 3);
+      if (labels) putBinary(out, mesh.labels[i], swap);
     }
     for (const auto& t : mesh.triangles) {
       out += static_cast<char>(3);

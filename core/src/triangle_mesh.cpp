@@ -37,6 +37,10 @@ void TriangleMesh::validate() const {
     throw std::invalid_argument("mesh has " + std::to_string(colors.size()) + " colours for " +
                                 std::to_string(n) + " vertices");
   }
+  if (!labels.empty() && labels.size() != n) {
+    throw std::invalid_argument("mesh has " + std::to_string(labels.size()) + " labels for " +
+                                std::to_string(n) + " vertices");
+  }
   const auto count = static_cast<long long>(n);
   for (size_t t = 0; t < triangles.size(); ++t) {
     const Eigen::Vector3i& tri = triangles[t];

@@ -51,6 +51,9 @@ TEST(TriangleMesh, ValidateRejectsAttributeCountMismatch) {
   m = testing::makeCube();
   m.colors.assign(9, Rgb8(1, 2, 3));
   expectInvalid(m, "9 colours for 8 vertices");
+  m = testing::makeCube();
+  m.labels.assign(3, 1);
+  expectInvalid(m, "3 labels for 8 vertices");
 }
 
 TEST(TriangleMesh, CubeBoundsAndAreaAreExact) {

@@ -72,6 +72,7 @@ TriangleMesh makeRandomMesh(std::uint32_t seed, std::size_t vertices, std::size_
     if (with_normals)
       m.normals.push_back(Eigen::Vector3f(coord(rng), coord(rng), coord(rng) + 11.0f).normalized());
     if (with_colors) m.colors.emplace_back(rng() & 255, rng() & 255, rng() & 255);
+    if (with_colors) m.labels.push_back(static_cast<std::int32_t>(rng() % 7) - 1);  // -1..5
   }
   std::uniform_int_distribution<int> index(0, static_cast<int>(vertices) - 1);
   while (m.triangles.size() < triangles) {
@@ -87,7 +88,7 @@ bool bitwiseEqual(const TriangleMesh& a, const TriangleMesh& b) {
            (x.empty() || std::memcmp(x.data(), y.data(), x.size() * sizeof(x[0])) == 0);
   };
   return same(a.positions, b.positions) && same(a.normals, b.normals) && a.colors == b.colors &&
-         a.triangles == b.triangles;
+         a.labels == b.labels && a.triangles == b.triangles;
 }
 
 void expectInputError(const std::function<void()>& action, const fs::path& path,

@@ -31,7 +31,8 @@ std::string readBytes(const std::filesystem::path& path);
 TriangleMesh makeCube(float side_m = 1.0f);
 
 /// A mesh with random positions (including awkward floats: tiny, huge, negative zero,
-/// subnormal), unit normals, colours and random non-degenerate triangles; fixed seed.
+/// subnormal), unit normals, colours with object labels, and random non-degenerate triangles;
+/// fixed seed.
 TriangleMesh makeRandomMesh(std::uint32_t seed, std::size_t vertices, std::size_t triangles,
                             bool with_normals = true, bool with_colors = true);
 

@@ -10,21 +10,26 @@ namespace objscan {
 using Rgb8 = Eigen::Matrix<std::uint8_t, 3, 1>;
 
 /// An indexed triangle mesh. Positions in metres, in whatever frame the producer states (a fused
-/// scene is in the world frame W). `normals` and `colors` are per vertex and either empty or
-/// exactly as long as `positions`. Triangles are counter-clockwise seen from outside (normal side).
+/// scene is in the world frame W). `normals`, `colors` and `labels` are per vertex and either empty
+/// or exactly as long as `positions`. Triangles are counter-clockwise seen from outside (normal
+/// side).
 struct TriangleMesh {
   std::vector<Eigen::Vector3f> positions;
   std::vector<Eigen::Vector3f> normals;  ///< unit length, or empty
   std::vector<Rgb8> colors;              ///< R, G, B, or empty
+  /// Ground-truth object id per vertex (0 = not an object, e.g. the desk), or empty. Stored in
+  /// PLY as the vertex property `object_id`.
+  std::vector<std::int32_t> labels;
   std::vector<Eigen::Vector3i> triangles;
 
   bool empty() const { return positions.empty(); }
   bool hasNormals() const { return !normals.empty(); }
   bool hasColors() const { return !colors.empty(); }
+  bool hasLabels() const { return !labels.empty(); }
 
   /// Throws std::invalid_argument naming the first problem found: a NaN/infinite position or
-  /// normal, normals/colours whose count differs from the vertex count, a triangle index outside
-  /// [0, vertex count), or a degenerate triangle (the same vertex twice).
+  /// normal, normals/colours/labels whose count differs from the vertex count, a triangle index
+  /// outside [0, vertex count), or a degenerate triangle (the same vertex twice).
   void validate() const;
 
   /// Axis-aligned bounds of the positions; empty box for an empty mesh.
