@@ -444,6 +444,9 @@ TEST(PlyIo, MalformedValuesAndHeaderLinesAreErrors) {
   writeBytes(dir / "endh.ply",
              "ply\nformat ascii 1.0\nelement vertex 1\n" + xyz + "end_header junk\n0 0 0\n");
   expectReadError(dir / "endh.ply", "unexpected text after 'end_header'");
+  writeBytes(dir / "floatid.ply", "ply\nformat ascii 1.0\nelement vertex 1\n" + xyz +
+                                      "property float object_id\nend_header\n0 0 0 1.5\n");
+  expectReadError(dir / "floatid.ply", "vertex property 'object_id' must have an integer type");
   writeBytes(dir / "nancolour.ply",
              "ply\nformat ascii 1.0\nelement vertex 1\n" + xyz +
                  "property float red\nproperty float green\nproperty float blue\nend_header\n"
