@@ -65,6 +65,21 @@ Eigen::AlignedBox3f TriangleMesh::bounds() const {
   return box;
 }
 
+void TriangleMesh::computeNormals() {
+  std::vector<Eigen::Vector3f> sum(positions.size(), Eigen::Vector3f::Zero());
+  for (const auto& t : triangles) {
+    // The cross product's length is twice the area: an area-weighted sum.
+    const Eigen::Vector3f n =
+        (positions[t[1]] - positions[t[0]]).cross(positions[t[2]] - positions[t[0]]);
+    for (int k = 0; k < 3; ++k) sum[t[k]] += n;
+  }
+  normals.resize(positions.size());
+  for (std::size_t i = 0; i < sum.size(); ++i) {
+    const float length = sum[i].norm();
+    normals[i] = length > 0.0f ? Eigen::Vector3f(sum[i] / length) : Eigen::Vector3f::UnitZ();
+  }
+}
+
 double TriangleMesh::surfaceArea() const {
   double area = 0.0;
   for (const auto& t : triangles) {

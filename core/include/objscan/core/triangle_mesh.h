@@ -35,6 +35,10 @@ struct TriangleMesh {
   /// Axis-aligned bounds of the positions; empty box for an empty mesh.
   Eigen::AlignedBox3f bounds() const;
 
+  /// Sets `normals` to the area-weighted mean of the adjacent triangles' normals (unit length;
+  /// +z for a vertex no triangle uses).
+  void computeNormals();
+
   /// Sum of triangle areas, m².
   double surfaceArea() const;
 
