@@ -11,6 +11,7 @@
 #include "info_command.h"
 #include "objscan/core/error.h"
 #include "objscan/core/log.h"
+#include "synth_command.h"
 
 namespace {
 
@@ -32,7 +33,6 @@ constexpr Planned kPlanned[] = {
     {"discover", "Segment meshes, measure and rank object hypotheses into DIR", "Step E"},
     {"render", "Render snapshots of the top hypotheses in DIR into DIR/renders/", "Step F"},
     {"scan", "Capture (or replay) to ranked objects in one go: fuse, discover, render", "Step F"},
-    {"synth", "Generate a synthetic scene with exact ground truth, as a recording", "Step B"},
     {"eval", "Precision/recall and AP of hypotheses against labelled ground truth", "Step E"},
     {"train", "Fit the classifier that scores hypotheses", "Step E"},
 };
@@ -69,6 +69,26 @@ int run(int argc, char** argv) {
   info->add_option("path", info_path,
                    "A .ply mesh, a TUM trajectory .txt, or a TUM-format recording folder")
       ->required();
+
+  SynthOptions synth_options;
+  CLI::App* synth = app.add_subcommand(
+      "synth", "Generate a synthetic scene with exact ground truth, rendered as a TUM recording");
+  synth->add_option("--out", synth_options.out, "Folder to create (must not exist, or be empty)")
+      ->required();
+  synth->add_option("--preset", synth_options.preset, "Scene: desk, shelf or counter")
+      ->capture_default_str();
+  synth->add_option("--objects", synth_options.objects, "How many objects to place (1-30)")
+      ->capture_default_str();
+  synth->add_option("--object-dir", synth_options.object_dir,
+                    "Folder of .ply meshes (metres, z up) added to the built-in shapes");
+  synth->add_option("--frames", synth_options.frames, "Frames along the hand-held path (30 Hz)")
+      ->capture_default_str();
+  synth->add_option("--seed", synth_options.seed, "Seed: same seed, same files")
+      ->capture_default_str();
+  synth->add_option("--noise", synth_options.noise, "Depth-sensor noise model: on or off")
+      ->capture_default_str();
+  synth->add_option("--intrinsics", synth_options.intrinsics,
+                    "intrinsics.json (fx, fy, cx, cy, width, height); default: Xtion 640x480");
 
   std::vector<std::pair<CLI::App*, const Planned*>> planned;
   for (const Planned& p : kPlanned) {
@@ -111,6 +131,7 @@ int run(int argc, char** argv) {
     }
   }
   if (info->parsed()) runInfo(info_path);
+  if (synth->parsed()) runSynth(synth_options);
   return kExitSuccess;
 }
 

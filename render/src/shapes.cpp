@@ -11,14 +11,6 @@ namespace {
 constexpr float kPi = std::numbers::pi_v<float>;
 constexpr int kSegments = 48;  // around a lathe or tube: facets of 2 mm on a 4 cm mug
 
-/// Moves a shape so that it rests on z = 0, centred on the z axis (its xy bounding box centre).
-void restOnGround(TriangleMesh& m) {
-  const Eigen::AlignedBox3f box = m.bounds();
-  const Eigen::Vector3f shift(-0.5f * (box.min().x() + box.max().x()),
-                              -0.5f * (box.min().y() + box.max().y()), -box.min().z());
-  for (auto& p : m.positions) p += shift;
-}
-
 void addQuad(TriangleMesh& m, int a, int b, int c, int d) {
   // Quad a-b-c-d counter-clockwise seen from outside; degenerate halves (poles) are skipped.
   if (a != b && b != c && a != c) m.triangles.emplace_back(a, b, c);
@@ -122,10 +114,18 @@ TriangleMesh banana(float v) {
         const float a = (t - 0.5f) * 1.8f;
         return Eigen::Vector3f(bend * std::sin(a), bend * (1.0f - std::cos(a)), thickness);
       },
-      [&](float t) { return 0.004f + thickness * std::sqrt(std::max(0.0f, std::sin(kPi * t))); }, 32, 20);
+      [&](float t) { return 0.004f + thickness * std::sqrt(std::max(0.0f, std::sin(kPi * t))); },
+      32, 20);
 }
 
 }  // namespace
+
+void restOnGround(TriangleMesh& m) {
+  const Eigen::AlignedBox3f box = m.bounds();
+  const Eigen::Vector3f shift(-0.5f * (box.min().x() + box.max().x()),
+                              -0.5f * (box.min().y() + box.max().y()), -box.min().z());
+  for (auto& p : m.positions) p += shift;
+}
 
 TriangleMesh box(float sx, float sy, float sz) {
   TriangleMesh m;

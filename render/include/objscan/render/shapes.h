@@ -29,6 +29,9 @@ TriangleMesh tube(const std::function<Eigen::Vector3f(float)>& centre,
 /// Appends `part` to `mesh` (positions, triangles; normals/colours/labels if both have them).
 void append(TriangleMesh& mesh, const TriangleMesh& part);
 
+/// Moves a mesh so that it rests on z = 0, centred on the z axis (its xy bounding box centre).
+void restOnGround(TriangleMesh& mesh);
+
 /// Sets every vertex colour and label of `mesh`.
 void paint(TriangleMesh& mesh, const Rgb8& color, std::int32_t label);
 

@@ -1,0 +1,60 @@
+#include "synth_command.h"
+
+#include <cstdio>
+#include <stdexcept>
+
+#include "objscan/core/intrinsics.h"
+#include "objscan/core/log.h"
+#include "objscan/core/progress.h"
+#include "objscan/render/synthetic_recording.h"
+#include "objscan/render/synthetic_scene.h"
+
+namespace objscan::app {
+
+void runSynth(const SynthOptions& options) {
+  if (options.noise != "on" && options.noise != "off") {
+    throw std::invalid_argument("--noise must be 'on' or 'off', not '" + options.noise + "'");
+  }
+  render::SceneConfig scene_config;
+  scene_config.preset = render::scenePresetFromString(options.preset);
+  scene_config.objects = options.objects;
+  scene_config.seed = options.seed;
+  scene_config.object_dir = options.object_dir;
+  render::HandheldPathConfig path_config;
+  path_config.frames = options.frames;
+  path_config.seed = options.seed;
+  render::SensorModelConfig sensor;
+  sensor.enabled = options.noise == "on";
+  const Intrinsics intrinsics = options.intrinsics.empty() ? Intrinsics::xtionDefault()
+                                                           : readIntrinsicsJson(options.intrinsics);
+
+  const render::SyntheticScene scene = render::composeScene(scene_config);
+  const Trajectory path = render::makeHandheldPath(scene, path_config);
+  std::vector<render::Visibility> visibility;
+  {
+    ProgressBar progress("rendering frames", path.size());
+    visibility = render::writeSyntheticRecording(scene, path, intrinsics, sensor, options.seed,
+                                                 options.out, &progress);
+  }
+  std::size_t never_seen = 0;
+  for (const auto& v : visibility) {
+    if (v.frames == 0) {
+      ++never_seen;
+      log::warning("object " + std::to_string(v.id) + " (" + scene.objects[v.id - 1].name +
+                   ") is not visible in any frame");
+    }
+  }
+  std::printf("scene         %s, %zu objects, seed %llu, noise %s\n",
+              render::toString(scene.preset), scene.objects.size(),
+              static_cast<unsigned long long>(options.seed), options.noise.c_str());
+  std::printf("mesh          %zu vertices, %zu triangles\n", scene.mesh.positions.size(),
+              scene.mesh.triangles.size());
+  std::printf("frames        %zu at 30 Hz, %dx%d\n", path.size(), intrinsics.width_px,
+              intrinsics.height_px);
+  std::printf("visible       %zu of %zu objects in at least one frame\n",
+              visibility.size() - never_seen, visibility.size());
+  std::printf("written       %s (TUM folder; scene_gt.ply, scene_gt.json)\n",
+              options.out.string().c_str());
+}
+
+}  // namespace objscan::app

@@ -1,0 +1,161 @@
+#include "objscan/render/synthetic_recording.h"
+
+#include <tbb/parallel_invoke.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <stdexcept>
+#include <string>
+
+#include "objscan/core/atomic_file.h"
+#include "objscan/core/error.h"
+#include "objscan/core/ply_io.h"
+#include "objscan/render/offscreen_renderer.h"
+
+namespace objscan::render {
+namespace fs = std::filesystem;
+
+namespace {
+
+/// TUM's depth PNG convention: value / 5000 = metres (so at most 13.1 m).
+constexpr double kDepthFactor = 5000.0;
+
+void writePng(const fs::path& path, const cv::Mat& image) {
+  if (!cv::imwrite(path.string(), image)) throw OutputError(path, "cannot write the PNG image");
+}
+
+std::string stampName(double t) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6f", t);
+  return buf;
+}
+
+nlohmann::json matrixJson(const Eigen::Matrix3f& R) {
+  nlohmann::json rows = nlohmann::json::array();
+  for (int r = 0; r < 3; ++r) rows.push_back({R(r, 0), R(r, 1), R(r, 2)});
+  return rows;
+}
+
+}  // namespace
+
+std::vector<Visibility> writeSyntheticRecording(const SyntheticScene& scene, const Trajectory& path,
+                                                const Intrinsics& intrinsics,
+                                                const SensorModelConfig& sensor, std::uint64_t seed,
+                                                const fs::path& out_dir, ProgressBar* progress) {
+  sensor.validate();
+  intrinsics.validate();
+  if (fs::exists(out_dir) && !(fs::is_directory(out_dir) && fs::is_empty(out_dir))) {
+    throw std::invalid_argument(
+        out_dir.string() +
+        " already exists and is not an empty folder; remove it or choose another --out");
+  }
+  fs::path tmp = out_dir;
+  tmp += ".tmp-" + std::to_string(::getpid());
+  std::error_code ec;
+  fs::remove_all(tmp, ec);
+  for (const char* sub : {"rgb", "depth", "label"}) {
+    fs::create_directories(tmp / sub, ec);
+    if (ec) throw OutputError(tmp / sub, "cannot create the folder: " + ec.message());
+  }
+
+  try {
+    OffscreenRenderer renderer(intrinsics);
+    renderer.setMesh(scene.mesh);
+    std::map<std::int32_t, Visibility> seen;
+    for (const SceneObject& o : scene.objects) seen[o.id] = {o.id, 0, 0};
+    std::string rgb_txt = "# color images\n# timestamp filename\n";
+    std::string depth_txt = "# depth maps\n# timestamp filename\n";
+    std::string associations;
+    for (std::size_t i = 0; i < path.size(); ++i) {
+      const StampedPose& pose = path.poses[i];
+      const RenderedView view = renderer.render(pose.T_W_C);
+      const cv::Mat depth_m = applySensorModel(view, intrinsics, sensor, seed * 1000003ULL + i);
+
+      std::map<std::int32_t, std::size_t> counts;
+      for (int v = 0; v < view.label.rows; ++v) {
+        const std::int32_t* row = view.label.ptr<std::int32_t>(v);
+        for (int u = 0; u < view.label.cols; ++u) {
+          if (row[u] > 0) ++counts[row[u]];
+        }
+      }
+      for (const auto& [id, n] : counts) {
+        seen[id].pixels += n;
+        seen[id].frames += 1;
+      }
+
+      cv::Mat depth16, label16, bgr;
+      depth_m.convertTo(depth16, CV_16UC1, kDepthFactor);  // saturates beyond 13.1 m
+      depth16.setTo(0, depth_m * kDepthFactor > 65535.0);
+      view.label.convertTo(label16, CV_16UC1);
+      cv::cvtColor(view.color_rgb, bgr, cv::COLOR_RGB2BGR);
+      const std::string name = stampName(pose.stamp_s) + ".png";
+      tbb::parallel_invoke([&] { writePng(tmp / "rgb" / name, bgr); },
+                           [&] { writePng(tmp / "depth" / name, depth16); },
+                           [&] { writePng(tmp / "label" / name, label16); });
+      const std::string stamp = stampName(pose.stamp_s);
+      rgb_txt += stamp + " rgb/" + name + "\n";
+      depth_txt += stamp + " depth/" + name + "\n";
+      associations += stamp + " rgb/" + name + " " + stamp + " depth/" + name + "\n";
+      if (progress) progress->advance();
+    }
+    writeFileAtomically(tmp / "rgb.txt", rgb_txt);
+    writeFileAtomically(tmp / "depth.txt", depth_txt);
+    writeFileAtomically(tmp / "associations.txt", associations);
+    writeTumTrajectory(tmp / "groundtruth.txt", path);
+
+    nlohmann::json in = {{"fx", intrinsics.fx_px},       {"fy", intrinsics.fy_px},
+                         {"cx", intrinsics.cx_px},       {"cy", intrinsics.cy_px},
+                         {"width", intrinsics.width_px}, {"height", intrinsics.height_px},
+                         {"depth_factor", kDepthFactor}};
+    writeFileAtomically(tmp / "intrinsics.json", in.dump(2) + "\n");
+    writePly(tmp / "scene_gt.ply", scene.mesh);
+
+    nlohmann::json objects = nlohmann::json::array();
+    std::vector<Visibility> visibility;
+    for (const SceneObject& o : scene.objects) {
+      const Eigen::Vector3f centre_W = o.T_W_O * (0.5f * (o.box_min_O + o.box_max_O));
+      const Eigen::Quaternionf q(o.T_W_O.rotation());
+      const Eigen::Vector3f t = o.T_W_O.translation();
+      objects.push_back({{"id", o.id},
+                         {"name", o.name},
+                         {"pose",
+                          {{"translation", {t.x(), t.y(), t.z()}},
+                           {"quaternion_xyzw", {q.x(), q.y(), q.z(), q.w()}}}},
+                         {"oriented_box",
+                          {{"center", {centre_W.x(), centre_W.y(), centre_W.z()}},
+                           {"extents",
+                            {o.box_max_O.x() - o.box_min_O.x(), o.box_max_O.y() - o.box_min_O.y(),
+                             o.box_max_O.z() - o.box_min_O.z()}},
+                           {"rotation", matrixJson(o.T_W_O.rotation())}}},
+                         {"vertex_count", o.vertex_count},
+                         {"touching", o.touching},
+                         {"visible_pixels", seen[o.id].pixels},
+                         {"frames_visible", seen[o.id].frames}});
+      visibility.push_back(seen[o.id]);
+    }
+    const nlohmann::json gt = {
+        {"format", "objscan synthetic scene ground truth, version 1"},
+        {"units", "metres; world frame z up, floor at z = 0"},
+        {"preset", toString(scene.preset)},
+        {"frames", path.size()},
+        {"mesh", "scene_gt.ply (vertex property object_id: 0 = not an object)"},
+        {"objects", objects}};
+    writeFileAtomically(tmp / "scene_gt.json", gt.dump(2) + "\n");
+
+    if (fs::exists(out_dir)) fs::remove(out_dir);  // an empty folder, checked above
+    fs::rename(tmp, out_dir, ec);
+    if (ec)
+      throw OutputError(out_dir, "cannot move the finished recording into place: " + ec.message());
+    return visibility;
+  } catch (...) {
+    fs::remove_all(tmp, ec);
+    throw;
+  }
+}
+
+}  // namespace objscan::render
