@@ -19,6 +19,7 @@ constexpr float kPi = std::numbers::pi_v<float>;
 /// Meshes from --object-dir larger than this are not household objects in metres; skipped.
 constexpr float kMaxObjectExtent_m = 0.6f;
 constexpr int kPlacementAttempts = 400;
+constexpr int kShapeTries = 10;
 
 const Rgb8 kWallColor(222, 216, 204), kFloorColor(118, 112, 108), kWoodColor(150, 108, 66),
     kCounterColor(205, 205, 198), kPaperColor(246, 246, 240), kCableColor(35, 35, 38);
@@ -104,7 +105,7 @@ std::vector<Area> buildSupports(ScenePreset preset, TriangleMesh& scene, Eigen::
   std::vector<Area> areas;
   switch (preset) {
     case ScenePreset::kDesk: {
-      const float top = 0.75f, w = 1.4f, d = 0.7f;
+      const float top = 0.75f, w = 1.6f, d = 0.8f;
       addSupport(scene, placed(shapes::box(w, d, 0.03f), {0, wall - d / 2, top - 0.03f}),
                  kWoodColor);
       for (const float sx : {-1.0f, 1.0f}) {
@@ -243,71 +244,75 @@ SyntheticScene composeScene(const SceneConfig& config) {
 
   for (int i = 0; i < config.objects; ++i) {
     const std::int32_t id = static_cast<std::int32_t>(scene.objects.size()) + 1;
-    const Candidate& pick = pool[rng() % pool.size()];
-    TriangleMesh object =
-        pick.mesh.empty() ? shapes::builtin(pick.name, uniform(0.0f, 1.0f)) : pick.mesh;
-    const Eigen::AlignedBox3f box = object.bounds();
-    const Eigen::Vector2f half = 0.5f * box.sizes().head<2>();
     const bool touching = uniform(0.0f, 1.0f) < config.touching_fraction;
-
     bool done = false;
-    for (int attempt = 0; attempt < kPlacementAttempts && !done; ++attempt) {
-      const int area_index = static_cast<int>(rng() % areas.size());
-      const Area& a = areas[static_cast<std::size_t>(area_index)];
-      if (box.sizes().z() > a.max_height) continue;
-      Footprint f{
-          {uniform(a.x0, a.x1), uniform(a.y0, a.y1)}, uniform(0.0f, 2.0f * kPi), half, area_index};
-      if (touching) {
-        f.yaw = 0.5f * kPi * static_cast<float>(rng() % 4);
-        const Eigen::Vector2f wh = f.worldHalf();
-        // Against the wall, or against the side of an earlier axis-aligned object.
-        std::vector<const Footprint*> neighbours;
-        for (std::size_t k = clutter; k < taken.size(); ++k) {
-          if (taken[k].area == area_index && std::fmod(taken[k].yaw, 0.5f * kPi) == 0.0f) {
-            neighbours.push_back(&taken[k]);
+    // A shape that finds no room is swapped for another before giving up.
+    for (int shape_try = 0; shape_try < kShapeTries && !done; ++shape_try) {
+      const Candidate& pick = pool[rng() % pool.size()];
+      TriangleMesh object =
+          pick.mesh.empty() ? shapes::builtin(pick.name, uniform(0.0f, 1.0f)) : pick.mesh;
+      const Eigen::AlignedBox3f box = object.bounds();
+      const Eigen::Vector2f half = 0.5f * box.sizes().head<2>();
+      for (int attempt = 0; attempt < kPlacementAttempts && !done; ++attempt) {
+        const int area_index = static_cast<int>(rng() % areas.size());
+        const Area& a = areas[static_cast<std::size_t>(area_index)];
+        if (box.sizes().z() > a.max_height) continue;
+        Footprint f{{uniform(a.x0, a.x1), uniform(a.y0, a.y1)},
+                    uniform(0.0f, 2.0f * kPi),
+                    half,
+                    area_index};
+        if (touching) {
+          f.yaw = 0.5f * kPi * static_cast<float>(rng() % 4);
+          const Eigen::Vector2f wh = f.worldHalf();
+          // Against the wall, or against the side of an earlier axis-aligned object.
+          std::vector<const Footprint*> neighbours;
+          for (std::size_t k = clutter; k < taken.size(); ++k) {
+            if (taken[k].area == area_index && std::fmod(taken[k].yaw, 0.5f * kPi) == 0.0f) {
+              neighbours.push_back(&taken[k]);
+            }
           }
-        }
-        if (neighbours.empty() || rng() % 2 == 0) {
-          f.centre.y() = a.y1 - wh.y();
-        } else {
-          const Footprint& n = *neighbours[rng() % neighbours.size()];
-          const Eigen::Vector2f nh = n.worldHalf();
-          const int side = static_cast<int>(rng() % 4);
-          const float along = uniform(-0.5f, 0.5f);
-          if (side < 2) {
-            f.centre.x() = n.centre.x() + (side == 0 ? 1.0f : -1.0f) * (nh.x() + wh.x());
-            f.centre.y() = n.centre.y() + along * std::min(nh.y(), wh.y());
+          if (neighbours.empty() || rng() % 2 == 0) {
+            f.centre.y() = a.y1 - wh.y();
           } else {
-            f.centre.y() = n.centre.y() + (side == 2 ? 1.0f : -1.0f) * (nh.y() + wh.y());
-            f.centre.x() = n.centre.x() + along * std::min(nh.x(), wh.x());
+            const Footprint& n = *neighbours[rng() % neighbours.size()];
+            const Eigen::Vector2f nh = n.worldHalf();
+            const int side = static_cast<int>(rng() % 4);
+            const float along = uniform(-0.5f, 0.5f);
+            if (side < 2) {
+              f.centre.x() = n.centre.x() + (side == 0 ? 1.0f : -1.0f) * (nh.x() + wh.x());
+              f.centre.y() = n.centre.y() + along * std::min(nh.y(), wh.y());
+            } else {
+              f.centre.y() = n.centre.y() + (side == 2 ? 1.0f : -1.0f) * (nh.y() + wh.y());
+              f.centre.x() = n.centre.x() + along * std::min(nh.x(), wh.x());
+            }
           }
         }
-      }
-      if (!inside(f, a)) continue;
-      if (std::any_of(taken.begin(), taken.end(),
-                      [&](const Footprint& t) { return overlap(f, t); }))
-        continue;
+        if (!inside(f, a)) continue;
+        if (std::any_of(taken.begin(), taken.end(),
+                        [&](const Footprint& t) { return overlap(f, t); }))
+          continue;
 
-      SceneObject o;
-      o.id = id;
-      o.name = pick.name;
-      o.T_W_O = Pose(Eigen::Translation3f(f.centre.x(), f.centre.y(), a.z) *
-                     Eigen::AngleAxisf(f.yaw, Eigen::Vector3f::UnitZ()));
-      o.box_min_O = box.min();
-      o.box_max_O = box.max();
-      o.vertex_count = object.positions.size();
-      o.touching = touching;
-      for (auto& p : object.positions) p = o.T_W_O * p;
-      shapes::paint(object, kPalette[static_cast<std::size_t>(id - 1) % std::size(kPalette)], id);
-      shapes::append(scene.mesh, object);
-      scene.objects.push_back(o);
-      taken.push_back(f);
-      done = true;
+        SceneObject o;
+        o.id = id;
+        o.name = pick.name;
+        o.T_W_O = Pose(Eigen::Translation3f(f.centre.x(), f.centre.y(), a.z) *
+                       Eigen::AngleAxisf(f.yaw, Eigen::Vector3f::UnitZ()));
+        o.box_min_O = box.min();
+        o.box_max_O = box.max();
+        o.vertex_count = object.positions.size();
+        o.touching = touching;
+        for (auto& p : object.positions) p = o.T_W_O * p;
+        shapes::paint(object, kPalette[static_cast<std::size_t>(id - 1) % std::size(kPalette)], id);
+        shapes::append(scene.mesh, object);
+        scene.objects.push_back(o);
+        taken.push_back(f);
+        done = true;
+      }
     }
     if (!done) {
-      throw std::runtime_error("scene: object " + std::to_string(id) + " (" + pick.name +
-                               ") does not fit on the " + toString(config.preset) +
-                               "; ask for fewer objects");
+      throw std::runtime_error("scene: object " + std::to_string(id) + " does not fit on the " +
+                               std::string(toString(config.preset)) + " after " +
+                               std::to_string(kShapeTries) + " shapes; ask for fewer objects");
     }
   }
 

@@ -71,7 +71,9 @@ struct HandheldPathConfig {
   double rate_hz = 30.0;
   double min_distance_m = 0.6;
   double max_distance_m = 1.5;
-  double sweep_rad = 1.2;           ///< total azimuth swept, centred in front of the wall
+  /// Azimuth swept over the whole path, centred in front of the wall; reached only by paths of
+  /// 10 s or more (the sweep turns at most 0.12 rad/s, as a hand would).
+  double sweep_rad = 1.2;
   double min_elevation_rad = 0.35;  ///< camera height above the look-at point, as an angle
   double max_elevation_rad = 0.8;
   double jitter_m = 0.01;  ///< amplitude of the hand's wobble
