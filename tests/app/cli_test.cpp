@@ -44,19 +44,59 @@ TEST(Cli, HelpForEveryCommandExitsZero) {
 }
 
 TEST(Cli, CommandsNotBuiltYetSaySoAndExitTwo) {
-  for (const char* cmd :
-       {"devices", "record", "fuse", "discover", "render", "scan", "synth", "eval", "train"}) {
+  const std::pair<const char*, const char*> planned[] = {
+      {"devices", "C"}, {"record", "C"}, {"fuse", "D"},   {"discover", "E"},
+      {"eval", "E"},    {"train", "E"},  {"render", "F"}, {"scan", "F"}};
+  for (const auto& [cmd, step] : planned) {
     const ProcessResult r = objscan({cmd, "some.oni", "--out", "dir"});
     EXPECT_EQ(r.exit_code, 2) << cmd;
     EXPECT_EQ(r.err, "objscan: error: '" + std::string(cmd) +
-                         "' is not built yet (it arrives with Step " +
-                         (std::string(cmd) == "synth"                                     ? "B"
-                          : std::string(cmd) == "devices" || std::string(cmd) == "record" ? "C"
-                          : std::string(cmd) == "fuse"                                    ? "D"
-                          : std::string(cmd) == "render" || std::string(cmd) == "scan"    ? "F"
-                                                                                          : "E") +
-                         ")\n");
+                         "' is not built yet (it arrives with Step " + step + ")\n");
   }
+}
+
+TEST(Cli, SynthWritesARecordingThatInfoReads) {
+  TempDir dir;
+  const std::string out = (dir / "scene").string();
+  ProcessResult r = objscan({"--quiet", "synth", "--out", out, "--frames", "4", "--objects", "6",
+                             "--seed", "9", "--preset", "counter"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err, "");
+  EXPECT_NE(r.out.find("scene         counter, 6 objects, seed 9, noise on"), std::string::npos)
+      << r.out;
+  r = objscan({"info", out});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("frames        4 (paired by associations.txt)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("fx 570.3 fy 570.3 cx 319.5 cy 239.5, 640x480 px (intrinsics.json)"),
+            std::string::npos)
+      << r.out;
+  r = objscan({"info", out + "/scene_gt.ply"});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("objects       6 object ids"), std::string::npos) << r.out;
+}
+
+TEST(Cli, SynthBadOptionsExitTwoWithOneLine) {
+  TempDir dir;
+  const std::string out = (dir / "s").string();
+  for (const std::vector<std::string>& args :
+       {std::vector<std::string>{"synth"},
+        {"synth", "--out", out, "--preset", "garage"},
+        {"synth", "--out", out, "--noise", "maybe"},
+        {"synth", "--out", out, "--objects", "0"},
+        {"synth", "--out", out, "--frames", "-3"},
+        {"synth", "--out", out, "--object-dir", (dir / "missing").string()},
+        {"synth", "--out", out, "--intrinsics", (dir / "missing.json").string()}}) {
+    const ProcessResult r = objscan(args);
+    EXPECT_EQ(r.exit_code, 2) << args.back() << ": " << r.err;
+    EXPECT_EQ(testing::lines(r.err).size(), 1u) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(out)) << "nothing written for bad options";
+  }
+  std::filesystem::create_directories(dir / "full");
+  writeBytes(dir / "full" / "keep.txt", "precious");
+  const ProcessResult r = objscan({"synth", "--out", (dir / "full").string(), "--frames", "2"});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("already exists and is not an empty folder"), std::string::npos) << r.err;
+  EXPECT_EQ(testing::readBytes(dir / "full" / "keep.txt"), "precious");
 }
 
 TEST(Cli, BadUsageExitsTwoWithOneLine) {
