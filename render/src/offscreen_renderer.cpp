@@ -6,6 +6,7 @@
 #include <GL/glext.h>
 
 #include <array>
+#include <opencv2/imgproc.hpp>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -40,15 +41,15 @@ flat in int v_label;
 layout(location = 0) out vec4 out_color;
 layout(location = 1) out float out_depth;
 layout(location = 2) out int out_label;
-layout(location = 3) out vec4 out_normal;
+layout(location = 3) out float out_cos_incidence;
 void main() {
   vec3 n = normalize(cross(dFdx(p_C), dFdy(p_C)));
   if (dot(n, p_C) > 0.0) n = -n;
-  float lambert = abs(dot(n, normalize(p_C)));
-  out_color = vec4(v_color * (0.3 + 0.7 * lambert), 1.0);
+  float cos_incidence = abs(dot(n, normalize(p_C)));
+  out_color = vec4(v_color * (0.3 + 0.7 * cos_incidence), 1.0);
   out_depth = p_C.z;
   out_label = v_label;
-  out_normal = vec4(n, 0.0);
+  out_cos_incidence = cos_incidence;
 }
 )";
 
@@ -94,7 +95,7 @@ struct OffscreenRenderer::Impl {
   std::vector<unsigned char> default_buffer;
   GLuint program = 0;
   GLuint framebuffer = 0;
-  std::array<GLuint, 4> color_targets{};  // colour, depth z, label, normal
+  std::array<GLuint, 4> color_targets{};  // colour, depth z, label, cos incidence
   GLuint depth_buffer = 0;
   GLuint vertex_array = 0;
   std::array<GLuint, 4> buffers{};  // positions, colours, labels, indices
@@ -151,7 +152,7 @@ OffscreenRenderer::OffscreenRenderer(const Intrinsics& intrinsics, float near_m,
   if (linked != GL_TRUE) throw std::runtime_error("OpenGL shader program does not link");
 
   // One framebuffer with four colour targets and a float depth buffer for the z-test.
-  const GLenum formats[4] = {GL_RGBA8, GL_R32F, GL_R32I, GL_RGBA32F};
+  const GLenum formats[4] = {GL_RGBA8, GL_R32F, GL_R32I, GL_R32F};
   glGenFramebuffers(1, &d.framebuffer);
   glBindFramebuffer(GL_FRAMEBUFFER, d.framebuffer);
   glGenRenderbuffers(4, d.color_targets.data());
@@ -253,19 +254,21 @@ RenderedView OffscreenRenderer::render(const Pose& T_W_C) {
   glBindVertexArray(0);
 
   RenderedView view;
-  view.color_rgb.create(h, w, CV_8UC3);
+  cv::Mat rgba(h, w, CV_8UC4);
   view.depth_m.create(h, w, CV_32FC1);
   view.label.create(h, w, CV_32SC1);
-  view.normal_C.create(h, w, CV_32FC3);
+  view.cos_incidence.create(h, w, CV_32FC1);
   glPixelStorei(GL_PACK_ALIGNMENT, 1);
   glReadBuffer(GL_COLOR_ATTACHMENT0);
-  glReadPixels(0, 0, w, h, GL_RGB, GL_UNSIGNED_BYTE, view.color_rgb.data);
+  // RGBA is the target's own layout: read as is, drop alpha on the CPU (faster than GL_RGB).
+  glReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data);
+  cv::cvtColor(rgba, view.color_rgb, cv::COLOR_RGBA2RGB);
   glReadBuffer(GL_COLOR_ATTACHMENT1);
   glReadPixels(0, 0, w, h, GL_RED, GL_FLOAT, view.depth_m.data);
   glReadBuffer(GL_COLOR_ATTACHMENT2);
   glReadPixels(0, 0, w, h, GL_RED_INTEGER, GL_INT, view.label.data);
   glReadBuffer(GL_COLOR_ATTACHMENT3);
-  glReadPixels(0, 0, w, h, GL_RGB, GL_FLOAT, view.normal_C.data);
+  glReadPixels(0, 0, w, h, GL_RED, GL_FLOAT, view.cos_incidence.data);
   if (const GLenum error = glGetError(); error != GL_NO_ERROR) {
     throw std::runtime_error("OpenGL error " + std::to_string(error) + " while rendering");
   }

@@ -77,8 +77,9 @@ TEST(OffscreenRenderer, TiltedPlaneDepthMatchesAnalyticWithinHalfMillimetre) {
       worst_m = std::max(worst_m, std::abs(rendered - z));
       ++valid;
       ASSERT_EQ(view.label.at<std::int32_t>(v, u), 4);
-      const cv::Vec3f normal = view.normal_C.at<cv::Vec3f>(v, u);
-      ASSERT_NEAR(std::abs(normal[0] * n.x() + normal[1] * n.y() + normal[2] * n.z()), 1.0, 1e-4);
+      // |cos| of the angle between the plane's normal and the ray through the pixel.
+      const Eigen::Vector3d r = ray(in, u, v).normalized();
+      ASSERT_NEAR(view.cos_incidence.at<float>(v, u), std::abs(n.dot(r)), 1e-4);
     }
   }
   EXPECT_EQ(valid, in.width_px * in.height_px);

@@ -14,8 +14,9 @@ struct RenderedView {
   cv::Mat depth_m;    ///< CV_32FC1: z of the visible surface in the camera frame; 0 = nothing hit
   cv::Mat color_rgb;  ///< CV_8UC3: vertex colour, Lambert-shaded by a light at the camera
   cv::Mat label;      ///< CV_32SC1: the surface's TriangleMesh::labels value (0 if none/no hit)
-  cv::Mat normal_C;   ///< CV_32FC3: geometric unit normal of the surface, camera frame, facing
-                      ///< the camera; (0, 0, 0) = nothing hit
+  /// CV_32FC1: |cos| of the angle between the surface normal and the viewing ray (1 = facing
+  /// the camera, 0 = grazing or nothing hit), from the exact geometric normal.
+  cv::Mat cos_incidence;
 };
 
 /// Off-screen OpenGL rendering through OSMesa (Mesa's llvmpipe on the CPU: no display, no GPU).
