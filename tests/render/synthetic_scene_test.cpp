@@ -58,6 +58,22 @@ bool insideClosed(const TriangleMesh& m, const Eigen::Vector3f& p) {
   return crossings % 2 == 1;
 }
 
+/// Runs `check(scene, seed)` on the scene of every preset for each seed, with `objects` objects.
+template <class Check>
+void forEachScene(int objects, std::initializer_list<std::uint64_t> seeds, Check check) {
+  for (const ScenePreset preset :
+       {ScenePreset::kDesk, ScenePreset::kShelf, ScenePreset::kCounter}) {
+    for (const std::uint64_t seed : seeds) {
+      SCOPED_TRACE(std::string(toString(preset)) + " seed " + std::to_string(seed));
+      SceneConfig config;
+      config.preset = preset;
+      config.objects = objects;
+      config.seed = seed;
+      check(composeScene(config), seed);
+    }
+  }
+}
+
 TEST(SyntheticScene, SameSeedSameSceneOtherSeedOtherScene) {
   SceneConfig config;
   config.seed = 21;
@@ -68,44 +84,35 @@ TEST(SyntheticScene, SameSeedSameSceneOtherSeedOtherScene) {
 }
 
 TEST(SyntheticScene, TwentyObjectsRestOnSupportsWithoutInterpenetrating) {
-  for (const ScenePreset preset :
-       {ScenePreset::kDesk, ScenePreset::kShelf, ScenePreset::kCounter}) {
-    for (const std::uint64_t seed : {1u, 2u}) {
-      SCOPED_TRACE(std::string(toString(preset)) + " seed " + std::to_string(seed));
-      SceneConfig config;
-      config.preset = preset;
-      config.objects = 20;
-      config.seed = seed;
-      const SyntheticScene scene = composeScene(config);
-      ASSERT_EQ(scene.objects.size(), 20u);
-      ASSERT_NO_THROW(scene.mesh.validate());
-      std::vector<TriangleMesh> parts;
-      std::vector<Eigen::AlignedBox3f> boxes;
-      for (const SceneObject& o : scene.objects) {
-        parts.push_back(objectMesh(scene.mesh, o.id));
-        boxes.push_back(parts.back().bounds());
-        EXPECT_EQ(parts.back().positions.size(), o.vertex_count);
-        // Resting: the lowest point is on the support the pose stands on.
-        EXPECT_NEAR(boxes.back().min().z(), o.T_W_O.translation().z(), 1e-5f) << o.name;
-      }
-      int touching = 0;
-      for (std::size_t i = 0; i < parts.size(); ++i) {
-        touching += scene.objects[i].touching;
-        for (std::size_t j = 0; j < parts.size(); ++j) {
-          if (i == j || !boxes[i].intersects(boxes[j])) continue;
-          // Touching objects share faces: a point on the other's surface (within 0.1 mm) is
-          // contact, not penetration.
-          const MeshDistance surface(parts[j], 1e-4f);
-          for (const auto& p : parts[i].positions) {
-            if (!boxes[j].contains(p) || surface.closest(p).triangle >= 0) continue;
-            ASSERT_FALSE(insideClosed(parts[j], p))
-                << scene.objects[i].name << " reaches into " << scene.objects[j].name;
-          }
+  forEachScene(20, {1u, 2u}, [](const SyntheticScene& scene, std::uint64_t) {
+    ASSERT_EQ(scene.objects.size(), 20u);
+    ASSERT_NO_THROW(scene.mesh.validate());
+    std::vector<TriangleMesh> parts;
+    std::vector<Eigen::AlignedBox3f> boxes;
+    for (const SceneObject& o : scene.objects) {
+      parts.push_back(objectMesh(scene.mesh, o.id));
+      boxes.push_back(parts.back().bounds());
+      EXPECT_EQ(parts.back().positions.size(), o.vertex_count);
+      // Resting: the lowest point is on the support the pose stands on.
+      EXPECT_NEAR(boxes.back().min().z(), o.T_W_O.translation().z(), 1e-5f) << o.name;
+    }
+    int touching = 0;
+    for (std::size_t i = 0; i < parts.size(); ++i) {
+      touching += scene.objects[i].touching;
+      for (std::size_t j = 0; j < parts.size(); ++j) {
+        if (i == j || !boxes[i].intersects(boxes[j])) continue;
+        // Touching objects share faces: a point on the other's surface (within 0.1 mm) is
+        // contact, not penetration.
+        const MeshDistance surface(parts[j], 1e-4f);
+        for (const auto& p : parts[i].positions) {
+          if (!boxes[j].contains(p) || surface.closest(p).triangle >= 0) continue;
+          ASSERT_FALSE(insideClosed(parts[j], p))
+              << scene.objects[i].name << " reaches into " << scene.objects[j].name;
         }
       }
-      EXPECT_GT(touching, 0) << "some objects stand flush against the wall or a neighbour";
     }
-  }
+    EXPECT_GT(touching, 0) << "some objects stand flush against the wall or a neighbour";
+  });
 }
 
 TEST(SyntheticScene, ObjectsFromAFolderAreUsed) {
@@ -129,34 +136,25 @@ TEST(SyntheticScene, ObjectsFromAFolderAreUsed) {
 
 TEST(HandheldPath, EveryObjectIsSeenAlongTheDefaultPath) {
   // The default 300-frame (10 s) path of each preset, rendered at every 10th pose.
-  for (const ScenePreset preset :
-       {ScenePreset::kDesk, ScenePreset::kShelf, ScenePreset::kCounter}) {
-    for (const std::uint64_t seed : {1u, 2u, 3u}) {
-      SCOPED_TRACE(std::string(toString(preset)) + " seed " + std::to_string(seed));
-      SceneConfig config;
-      config.preset = preset;
-      config.objects = 12;
-      config.seed = seed;
-      const SyntheticScene scene = composeScene(config);
-      HandheldPathConfig path_config;
-      path_config.seed = seed;
-      const Trajectory path = makeHandheldPath(scene, path_config);
-      OffscreenRenderer renderer(Intrinsics::xtionDefault());
-      renderer.setMesh(scene.mesh);
-      std::vector<int> seen(scene.objects.size() + 1, 0);
-      for (std::size_t i = 0; i < path.size(); i += 10) {
-        const cv::Mat labels = renderer.render(path.poses[i].T_W_C).label;
-        for (int v = 0; v < labels.rows; ++v) {
-          for (int u = 0; u < labels.cols; ++u)
-            ++seen[static_cast<std::size_t>(labels.at<std::int32_t>(v, u))];
-        }
-      }
-      for (const SceneObject& o : scene.objects) {
-        EXPECT_GT(seen[static_cast<std::size_t>(o.id)], 0)
-            << o.name << " (id " << o.id << ") never seen";
+  forEachScene(12, {1u, 2u, 3u}, [](const SyntheticScene& scene, std::uint64_t seed) {
+    HandheldPathConfig path_config;
+    path_config.seed = seed;
+    const Trajectory path = makeHandheldPath(scene, path_config);
+    OffscreenRenderer renderer(Intrinsics::xtionDefault());
+    renderer.setMesh(scene.mesh);
+    std::vector<int> seen(scene.objects.size() + 1, 0);
+    for (std::size_t i = 0; i < path.size(); i += 10) {
+      const cv::Mat labels = renderer.render(path.poses[i].T_W_C).label;
+      for (int v = 0; v < labels.rows; ++v) {
+        for (int u = 0; u < labels.cols; ++u)
+          ++seen[static_cast<std::size_t>(labels.at<std::int32_t>(v, u))];
       }
     }
-  }
+    for (const SceneObject& o : scene.objects) {
+      EXPECT_GT(seen[static_cast<std::size_t>(o.id)], 0)
+          << o.name << " (id " << o.id << ") never seen";
+    }
+  });
 }
 
 TEST(HandheldPath, StaysInRangeLooksAtTheSceneAndMovesLikeAHand) {
