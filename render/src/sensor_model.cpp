@@ -97,6 +97,11 @@ double SensorModelConfig::axialSigmaM(double z_m) const {
 cv::Mat applySensorModel(const RenderedView& view, const Intrinsics& in,
                          const SensorModelConfig& config, std::uint64_t seed) {
   config.validate();
+  if (view.depth_m.type() != CV_32FC1 || view.cos_incidence.type() != CV_32FC1 ||
+      view.depth_m.size() != view.cos_incidence.size()) {
+    throw std::invalid_argument(
+        "sensor model: the view needs depth_m and cos_incidence, both CV_32FC1 of one size");
+  }
   const cv::Mat& ideal = view.depth_m;
   if (!config.enabled) return ideal.clone();
   const int w = ideal.cols, h = ideal.rows;

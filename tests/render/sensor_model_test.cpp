@@ -130,6 +130,13 @@ TEST(SensorModel, DepthsFallOnTheDisparityGrid) {
   EXPECT_NEAR(z, fb / (171.0 / 8.0), 1e-5);
 }
 
+TEST(SensorModel, RefusesViewsWithoutIncidence) {
+  RenderedView view;
+  view.depth_m = cv::Mat(4, 4, CV_32FC1, cv::Scalar(1.0f));
+  EXPECT_THROW(applySensorModel(view, Intrinsics::xtionDefault(), SensorModelConfig{}, 1),
+               std::invalid_argument);
+}
+
 TEST(SensorModel, OffMeansUntouchedAndSeedsAreDeterministic) {
   const Intrinsics in = Intrinsics::xtionDefault();
   const RenderedView view =
