@@ -84,6 +84,11 @@ int run(int argc, char** argv) {
   synth->add_option("--frames", synth_options.frames, "Frames along the hand-held path (30 Hz)")
       ->capture_default_str();
   synth->add_option("--seed", synth_options.seed, "Seed: same seed, same files")
+      ->check(CLI::Validator(
+          [](std::string& s) {
+            return s.starts_with('-') ? std::string("must be 0 or more") : std::string();
+          },
+          "NONNEGATIVE"))
       ->capture_default_str();
   synth->add_option("--noise", synth_options.noise, "Depth-sensor noise model: on or off")
       ->capture_default_str();

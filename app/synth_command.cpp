@@ -15,6 +15,7 @@ void runSynth(const SynthOptions& options) {
   if (options.noise != "on" && options.noise != "off") {
     throw std::invalid_argument("--noise must be 'on' or 'off', not '" + options.noise + "'");
   }
+  render::checkNewFolder(options.out);  // before any work: a bad --out costs nothing
   render::SceneConfig scene_config;
   scene_config.preset = render::scenePresetFromString(options.preset);
   scene_config.objects = options.objects;
@@ -28,8 +29,10 @@ void runSynth(const SynthOptions& options) {
   const Intrinsics intrinsics = options.intrinsics.empty() ? Intrinsics::xtionDefault()
                                                            : readIntrinsicsJson(options.intrinsics);
 
-  const render::SyntheticScene scene = render::composeScene(scene_config);
-  const Trajectory path = render::makeHandheldPath(scene, path_config);
+  const render::SceneAndPath composed =
+      render::composeSceneSeenAlongPath(scene_config, path_config, intrinsics);
+  const render::SyntheticScene& scene = composed.scene;
+  const Trajectory& path = composed.path;
   std::vector<render::Visibility> visibility;
   {
     ProgressBar progress("rendering frames", path.size());

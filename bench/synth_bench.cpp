@@ -12,6 +12,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <exception>
 #include <string>
 #include <vector>
 
@@ -57,7 +58,7 @@ cv::Mat labelPicture(const cv::Mat& label) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int run(int argc, char** argv) {
   int frames = 300, objects = 20;
   std::string picture;
   for (int i = 1; i + 1 < argc; i += 2) {
@@ -133,4 +134,13 @@ int main(int argc, char** argv) {
               (render_ms + noise_ms + encode_ms) / n,
               1000.0 * n / (render_ms + noise_ms + encode_ms));
   return 0;
+}
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "synth_bench: %s\n", e.what());
+    return 2;
+  }
 }

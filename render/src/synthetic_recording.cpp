@@ -14,6 +14,7 @@
 
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/error.h"
+#include "objscan/core/log.h"
 #include "objscan/core/ply_io.h"
 #include "objscan/render/offscreen_renderer.h"
 
@@ -43,17 +44,64 @@ nlohmann::json matrixJson(const Eigen::Matrix3f& R) {
 
 }  // namespace
 
-std::vector<Visibility> writeSyntheticRecording(const SyntheticScene& scene, const Trajectory& path,
-                                                const Intrinsics& intrinsics,
-                                                const SensorModelConfig& sensor, std::uint64_t seed,
-                                                const fs::path& out_dir, ProgressBar* progress) {
-  sensor.validate();
-  intrinsics.validate();
+fs::path checkNewFolder(const fs::path& out_path) {
+  // "out/" and "out" are the same folder; the temporary sibling must not land inside it.
+  fs::path out_dir = out_path.lexically_normal();
+  if (!out_dir.empty() && out_dir.filename().empty()) out_dir = out_dir.parent_path();
+  if (out_dir.empty() || out_dir == "." || out_dir == "..") {
+    throw std::invalid_argument("--out must name a new folder, not '" + out_path.string() + "'");
+  }
   if (fs::exists(out_dir) && !(fs::is_directory(out_dir) && fs::is_empty(out_dir))) {
     throw std::invalid_argument(
         out_dir.string() +
         " already exists and is not an empty folder; remove it or choose another --out");
   }
+  return out_dir;
+}
+
+SceneAndPath composeSceneSeenAlongPath(const SceneConfig& config,
+                                       const HandheldPathConfig& path_config,
+                                       const Intrinsics& intrinsics) {
+  constexpr int kAttempts = 8;
+  constexpr std::size_t kPoseStride = 10;
+  constexpr int kMinPixels = 20;
+  OffscreenRenderer renderer(intrinsics);
+  SceneAndPath result;
+  for (int attempt = 0; attempt < kAttempts; ++attempt) {
+    SceneConfig c = config;
+    c.seed = config.seed + static_cast<std::uint64_t>(attempt) * 1000003ULL;
+    result.scene = composeScene(c);
+    result.scene_seed = c.seed;
+    HandheldPathConfig p = path_config;
+    p.seed = c.seed;
+    result.path = makeHandheldPath(result.scene, p);
+    renderer.setMesh(result.scene.mesh);
+    std::vector<int> best(result.scene.objects.size() + 1, 0);
+    for (std::size_t i = 0; i < result.path.size(); i += kPoseStride) {
+      std::vector<int> count(best.size(), 0);
+      const cv::Mat label = renderer.render(result.path.poses[i].T_W_C).label;
+      for (int v = 0; v < label.rows; ++v) {
+        const std::int32_t* row = label.ptr<std::int32_t>(v);
+        for (int u = 0; u < label.cols; ++u) ++count[static_cast<std::size_t>(row[u])];
+      }
+      for (std::size_t id = 1; id < best.size(); ++id) best[id] = std::max(best[id], count[id]);
+    }
+    const auto hidden =
+        std::count_if(best.begin() + 1, best.end(), [](int n) { return n < kMinPixels; });
+    if (hidden == 0) return result;
+    log::info("scene seed " + std::to_string(c.seed) + ": " + std::to_string(hidden) +
+              " object(s) hidden along the path; composing again");
+  }
+  return result;
+}
+
+std::vector<Visibility> writeSyntheticRecording(const SyntheticScene& scene, const Trajectory& path,
+                                                const Intrinsics& intrinsics,
+                                                const SensorModelConfig& sensor, std::uint64_t seed,
+                                                const fs::path& out_path, ProgressBar* progress) {
+  sensor.validate();
+  intrinsics.validate();
+  const fs::path out_dir = checkNewFolder(out_path);
   fs::path tmp = out_dir;
   tmp += ".tmp-" + std::to_string(::getpid());
   std::error_code ec;
@@ -147,7 +195,7 @@ std::vector<Visibility> writeSyntheticRecording(const SyntheticScene& scene, con
         {"objects", objects}};
     writeFileAtomically(tmp / "scene_gt.json", gt.dump(2) + "\n");
 
-    if (fs::exists(out_dir)) fs::remove(out_dir);  // an empty folder, checked above
+    fs::remove(out_dir, ec);  // an empty folder (checked above), or nothing
     fs::rename(tmp, out_dir, ec);
     if (ec)
       throw OutputError(out_dir, "cannot move the finished recording into place: " + ec.message());

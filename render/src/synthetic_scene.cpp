@@ -6,6 +6,7 @@
 #include <random>
 #include <stdexcept>
 
+#include "objscan/core/error.h"
 #include "objscan/core/log.h"
 #include "objscan/core/ply_io.h"
 #include "objscan/render/shapes.h"
@@ -154,21 +155,34 @@ std::vector<Area> buildSupports(ScenePreset preset, TriangleMesh& scene, Eigen::
 
 struct Candidate {
   std::string name;
-  TriangleMesh mesh;  // empty for built-ins, which are made with a fresh variation each time
+  bool builtin = true;  ///< made with a fresh variation each time; otherwise `mesh` from a file
+  TriangleMesh mesh;
 };
 
 std::vector<Candidate> candidatePool(const SceneConfig& config) {
   std::vector<Candidate> pool;
-  for (const std::string& name : shapes::builtinNames()) pool.push_back({name, {}});
+  for (const std::string& name : shapes::builtinNames()) pool.push_back({name, true, {}});
   if (config.object_dir.empty()) return pool;
   std::vector<fs::path> files;
-  for (const auto& entry : fs::directory_iterator(config.object_dir)) {
-    if (entry.is_regular_file() && entry.path().extension() == ".ply")
-      files.push_back(entry.path());
+  try {
+    for (const auto& entry : fs::directory_iterator(config.object_dir)) {
+      if (entry.is_regular_file() && entry.path().extension() == ".ply") {
+        files.push_back(entry.path());
+      }
+    }
+  } catch (const fs::filesystem_error& e) {
+    throw InputError(config.object_dir,
+                     std::string("cannot list the folder: ") + e.code().message());
   }
   std::sort(files.begin(), files.end());  // directory order is not stable; the seed must be
   for (const fs::path& file : files) {
     TriangleMesh m = readPly(file);
+    if (m.triangles.empty())
+      throw InputError(file, "has no faces; objects must be triangle meshes");
+    if (m.bounds().sizes().minCoeff() <= 0.0f) {
+      throw InputError(file,
+                       "is flat or a single point (zero extent along an axis); not an object");
+    }
     m.normals.clear();
     m.colors.clear();
     m.labels.clear();
@@ -177,7 +191,7 @@ std::vector<Candidate> candidatePool(const SceneConfig& config) {
       log::warning(file.string() + ": larger than 0.6 m, not used as an object (is it in metres?)");
       continue;
     }
-    pool.push_back({file.stem().string(), std::move(m)});
+    pool.push_back({file.stem().string(), false, std::move(m)});
   }
   return pool;
 }
@@ -231,7 +245,11 @@ SyntheticScene composeScene(const SceneConfig& config) {
       const Area& a = areas.front();
       const Footprint f{
           {uniform(a.x0, a.x1), uniform(a.y0, a.y1)}, uniform(0, kPi), {0.105f, 0.1485f}, 0};
-      if (!inside(f, a)) continue;
+      // Sheets never overlap one another: two boxes in one plane would flicker in the renders.
+      if (!inside(f, a) || std::any_of(taken.begin(), taken.end(),
+                                       [&](const Footprint& t) { return overlap(f, t); })) {
+        continue;
+      }
       TriangleMesh sheet = shapes::box(0.21f, 0.297f, 0.001f);
       const Pose T = Pose(Eigen::Translation3f(f.centre.x(), f.centre.y(), a.z) *
                           Eigen::AngleAxisf(f.yaw, Eigen::Vector3f::UnitZ()));
@@ -250,7 +268,7 @@ SyntheticScene composeScene(const SceneConfig& config) {
     for (int shape_try = 0; shape_try < kShapeTries && !done; ++shape_try) {
       const Candidate& pick = pool[rng() % pool.size()];
       TriangleMesh object =
-          pick.mesh.empty() ? shapes::builtin(pick.name, uniform(0.0f, 1.0f)) : pick.mesh;
+          pick.builtin ? shapes::builtin(pick.name, uniform(0.0f, 1.0f)) : pick.mesh;
       const Eigen::AlignedBox3f box = object.bounds();
       const Eigen::Vector2f half = 0.5f * box.sizes().head<2>();
       for (int attempt = 0; attempt < kPlacementAttempts && !done; ++attempt) {

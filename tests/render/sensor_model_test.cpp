@@ -117,17 +117,67 @@ TEST(SensorModel, ProjectorShadowLiesLeftOfForegroundWithTheBaselineWidth) {
   EXPECT_GT(depth.at<float>(v, left_edge), 0.0f) << "the board itself reads";
 }
 
+TEST(SensorModel, DepthEdgesLoseHalfTheirReadingsAndBorrowTheRestFromNeighbours) {
+  const Intrinsics in = Intrinsics::xtionDefault();
+  SensorModelConfig config = quiet();
+  config.edge_dropout_probability = 0.5;
+  config.lateral_sigma_px = 0.8;
+  config.baseline_m = 1e-6;  // no projector shadow: edges only
+  const RenderedView view =
+      renderQuads({{{0, 0, 2.0f}, 10.0f, 10.0f}, {{0, 0, 1.0f}, 0.15f, 0.15f}});
+  const cv::Mat depth = applySensorModel(view, in, config, 9);
+  int edge = 0, edge_missing = 0, borrowed = 0, interior_changed = 0;
+  for (int v = 1; v + 1 < depth.rows; ++v) {
+    for (int u = 1; u + 1 < depth.cols; ++u) {
+      const float z = view.depth_m.at<float>(v, u);
+      bool is_edge = false;
+      for (const auto& [du, dv] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}}) {
+        is_edge |= std::abs(view.depth_m.at<float>(v + dv, u + du) - z) > 0.04f * z;
+      }
+      const float out = depth.at<float>(v, u);
+      if (!is_edge) {
+        interior_changed += out != z;
+        continue;
+      }
+      ++edge;
+      if (out == 0.0f) {
+        ++edge_missing;
+      } else {
+        ASSERT_TRUE(out == 1.0f || out == 2.0f) << "an edge reading is the board's or the wall's";
+        borrowed += out != z;
+      }
+    }
+  }
+  EXPECT_EQ(interior_changed, 0) << "away from edges nothing moves";
+  ASSERT_GT(edge, 1300);  // a 171 px square board: 4 x 171 pixels on each side of its outline
+  EXPECT_NEAR(static_cast<double>(edge_missing) / edge, 0.5, 0.06);
+  // Of the readings kept, some come from across the edge (sigma 0.8 px): a fair share, not all.
+  EXPECT_GT(borrowed, (edge - edge_missing) / 10);
+  EXPECT_LT(borrowed, (edge - edge_missing) / 2);
+}
+
 TEST(SensorModel, DepthsFallOnTheDisparityGrid) {
   const Intrinsics in = Intrinsics::xtionDefault();
   SensorModelConfig config = quiet();
   config.disparity_step_px = 1.0 / 8.0;
-  const cv::Mat depth = applySensorModel(wallAt(2.0f), in, config, 7);
+  // A tilted plane covers a range of depths: every reading must sit on the 1/8 px grid.
+  const cv::Mat depth =
+      applySensorModel(renderQuads({{{0, 0, 2.0f}, 5.0f, 5.0f, 0.6f}}), in, config, 7);
   const double fb = in.fx_px * config.baseline_m;
-  const float z = depth.at<float>(100, 100);
-  const double steps = fb / z / config.disparity_step_px;
-  EXPECT_NEAR(steps, std::round(steps), 1e-3);
-  // 2 m lies between grid depths 1.9997 m and 2.0114 m (disparity 171 and 170 eighths).
-  EXPECT_NEAR(z, fb / (171.0 / 8.0), 1e-5);
+  int readings = 0;
+  for (int v = 0; v < depth.rows; ++v) {
+    for (int u = 0; u < depth.cols; ++u) {
+      const float z = depth.at<float>(v, u);
+      if (z == 0.0f) continue;
+      ++readings;
+      const double steps = fb / z / config.disparity_step_px;
+      ASSERT_NEAR(steps, std::round(steps), 1e-3) << "pixel " << u << ", " << v;
+    }
+  }
+  EXPECT_GT(readings, 300000);
+  // At 2 m facing the camera: between grid depths 1.9997 m and 2.0114 m (171 and 170 eighths).
+  EXPECT_NEAR(applySensorModel(wallAt(2.0f), in, config, 7).at<float>(100, 100), fb / (171.0 / 8.0),
+              1e-5);
 }
 
 TEST(SensorModel, RefusesViewsWithoutIncidence) {

@@ -2,12 +2,17 @@
 
 #include <gtest/gtest.h>
 
+#include <sys/resource.h>
+
+#include <csignal>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "objscan/capture/tum_folder.h"
+#include "objscan/core/error.h"
 #include "objscan/core/mesh_distance.h"
 #include "objscan/core/ply_io.h"
 #include "objscan/render/offscreen_renderer.h"
@@ -95,6 +100,8 @@ TEST(SyntheticScene, TwentyObjectsRestOnSupportsWithoutInterpenetrating) {
       EXPECT_EQ(parts.back().positions.size(), o.vertex_count);
       // Resting: the lowest point is on the support the pose stands on.
       EXPECT_NEAR(boxes.back().min().z(), o.T_W_O.translation().z(), 1e-5f) << o.name;
+      // In front of the wall, never into it.
+      EXPECT_LE(boxes.back().max().y(), SyntheticScene::kWallY + 1e-5f) << o.name;
     }
     int touching = 0;
     for (std::size_t i = 0; i < parts.size(); ++i) {
@@ -132,6 +139,34 @@ TEST(SyntheticScene, ObjectsFromAFolderAreUsed) {
     EXPECT_NEAR(o.box_min_O.z(), 0.0f, 1e-6f);
   }
   EXPECT_GT(widgets, 0) << "1 of 12 candidates, 20 draws";
+}
+
+TEST(SyntheticScene, BadMeshesInTheObjectFolderAreNamedErrors) {
+  const std::string xyz = "property float x\nproperty float y\nproperty float z\n";
+  struct Case {
+    std::string file, text, needle;
+  };
+  const std::vector<Case> cases = {
+      // An empty mesh must not quietly turn into the built-in mug of the same name.
+      {"mug.ply", "ply\nformat ascii 1.0\nelement vertex 0\n" + xyz + "end_header\n",
+       "has no faces"},
+      {"cloud.ply",
+       "ply\nformat ascii 1.0\nelement vertex 3\n" + xyz + "end_header\n0 0 0\n1 0 0\n0 1 0\n",
+       "has no faces"},
+      {"flat.ply",
+       "ply\nformat ascii 1.0\nelement vertex 3\n" + xyz +
+           "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n0.1 0 0\n0 "
+           "0.1 0\n3 0 1 2\n",
+       "zero extent"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.file);
+    testing::TempDir dir;
+    testing::writeBytes(dir / c.file, c.text);
+    SceneConfig config;
+    config.object_dir = dir.path();
+    testing::expectInputError([&] { composeScene(config); }, dir / c.file, c.needle);
+  }
 }
 
 TEST(HandheldPath, EveryObjectIsSeenAlongTheDefaultPath) {
@@ -259,17 +294,37 @@ TEST_F(SyntheticRecording, BackProjectedDepthLiesOnTheGroundTruthMeshWithinOneMi
   EXPECT_GT(static_cast<double>(label_agrees) / static_cast<double>(labelled), 0.999);
 }
 
-TEST_F(SyntheticRecording, EveryObjectIsVisibleAndTheJsonDescribesIt) {
+TEST_F(SyntheticRecording, JsonVisibilityMatchesARecountOfTheLabelImages) {
+  // Count each object's pixels and frames again from the label PNGs on disk.
+  std::map<int, std::pair<std::size_t, std::size_t>> recount;  // id -> pixels, frames
+  for (const auto& entry : fs::directory_iterator(rec() / "label")) {
+    const cv::Mat labels = cv::imread(entry.path().string(), cv::IMREAD_UNCHANGED);
+    ASSERT_EQ(labels.type(), CV_16UC1);
+    std::map<int, std::size_t> in_frame;
+    for (int v = 0; v < labels.rows; ++v) {
+      for (int u = 0; u < labels.cols; ++u) {
+        if (const int id = labels.at<std::uint16_t>(v, u); id > 0) ++in_frame[id];
+      }
+    }
+    for (const auto& [id, n] : in_frame) {
+      recount[id].first += n;
+      recount[id].second += 1;
+    }
+  }
   const nlohmann::json gt = nlohmann::json::parse(testing::readBytes(rec() / "scene_gt.json"));
   ASSERT_EQ(gt["objects"].size(), scene_->objects.size());
+  std::size_t seen = 0;
   for (std::size_t i = 0; i < scene_->objects.size(); ++i) {
     const auto& o = gt["objects"][i];
-    EXPECT_EQ(o["id"].get<int>(), scene_->objects[i].id);
+    const int id = scene_->objects[i].id;
+    EXPECT_EQ(o["id"].get<int>(), id);
     EXPECT_EQ(o["name"].get<std::string>(), scene_->objects[i].name);
     EXPECT_EQ(o["vertex_count"].get<std::size_t>(), scene_->objects[i].vertex_count);
-    EXPECT_EQ(o["frames_visible"].get<std::size_t>(), visibility_[i].frames);
-    EXPECT_EQ(o["visible_pixels"].get<std::size_t>(), visibility_[i].pixels);
+    EXPECT_EQ(o["visible_pixels"].get<std::size_t>(), recount[id].first) << "id " << id;
+    EXPECT_EQ(o["frames_visible"].get<std::size_t>(), recount[id].second) << "id " << id;
+    seen += recount[id].second > 0;
   }
+  EXPECT_GT(seen, 0u);
   const TriangleMesh mesh = readPly(rec() / "scene_gt.ply");
   EXPECT_EQ(mesh.labels, scene_->mesh.labels);
 }
@@ -295,6 +350,43 @@ TEST_F(SyntheticRecording, SameSeedWritesIdenticalFiles) {
     ASSERT_EQ(testing::readBytes(entry.path()), testing::readBytes(twin)) << twin;
   }
   EXPECT_EQ(files, 12u * 3u + 7u);  // rgb, depth, label per frame; 7 index and ground-truth files
+}
+
+TEST_F(SyntheticRecording, FailureWhileWritingLeavesNoFolderBehind) {
+  // A 64 KB file-size limit makes the first PNG write fail part-way (as a full disk would).
+  testing::TempDir dir;
+  struct rlimit saved {};
+  ASSERT_EQ(::getrlimit(RLIMIT_FSIZE, &saved), 0);
+  const auto old_handler = std::signal(SIGXFSZ, SIG_IGN);
+  struct rlimit small = saved;
+  small.rlim_cur = 64 * 1024;
+  ASSERT_EQ(::setrlimit(RLIMIT_FSIZE, &small), 0);
+  bool threw = false;
+  try {
+    writeSyntheticRecording(*scene_, *path_, Intrinsics::xtionDefault(), SensorModelConfig{}, 1,
+                            dir / "rec");
+  } catch (const OutputError&) {
+    threw = true;
+  }
+  ::setrlimit(RLIMIT_FSIZE, &saved);
+  std::signal(SIGXFSZ, old_handler);
+  EXPECT_TRUE(threw);
+  std::size_t entries = 0;
+  for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir.path())) ++entries;
+  EXPECT_EQ(entries, 0u) << "neither the recording nor its temporary folder remains";
+}
+
+TEST(SyntheticRecordingPaths, TrailingSlashNamesTheSameFolder) {
+  testing::TempDir dir;
+  EXPECT_EQ(checkNewFolder((dir / "out").string() + "/"), dir / "out");
+  EXPECT_THROW(checkNewFolder(""), std::invalid_argument);
+  EXPECT_THROW(checkNewFolder("."), std::invalid_argument);
+  const SyntheticScene scene = composeScene(SceneConfig{});
+  HandheldPathConfig one;
+  one.frames = 1;
+  writeSyntheticRecording(scene, makeHandheldPath(scene, one), Intrinsics::xtionDefault(),
+                          SensorModelConfig{}, 1, (dir / "out").string() + "/");
+  EXPECT_TRUE(fs::is_regular_file(dir / "out" / "scene_gt.json"));
 }
 
 TEST_F(SyntheticRecording, RefusesToOverwriteAndLeavesNoTemporaryFolder) {

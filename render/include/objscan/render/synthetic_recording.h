@@ -19,6 +19,24 @@ struct Visibility {
   std::size_t frames = 0;  ///< frames with at least one pixel
 };
 
+/// Checks that `out` can become a new recording folder (absent, or an empty folder) and returns
+/// it normalised ("out/" -> "out"). Throws std::invalid_argument naming the problem.
+std::filesystem::path checkNewFolder(const std::filesystem::path& out);
+
+/// A scene and the path that sees it.
+struct SceneAndPath {
+  SyntheticScene scene;
+  Trajectory path;
+  std::uint64_t scene_seed = 0;  ///< the seed the scene was finally composed with
+};
+
+/// Composes the scene and its hand-held path, then renders every 10th pose: if an object never
+/// shows at least 20 pixels (hidden behind others or outside every view), composes again with a
+/// seed derived from config.seed, up to 8 times, and keeps the last try. Deterministic.
+SceneAndPath composeSceneSeenAlongPath(const SceneConfig& config,
+                                       const HandheldPathConfig& path_config,
+                                       const Intrinsics& intrinsics);
+
 /// Renders `scene` along `path` and writes a TUM RGB-D folder to `out_dir`:
 ///   rgb/ depth/ (16-bit PNG, value / 5000 = metres, 0 = no reading) label/ (16-bit PNG, object
 ///   id per pixel) rgb.txt depth.txt associations.txt groundtruth.txt intrinsics.json
