@@ -5,7 +5,6 @@
 
 #include <cmath>
 #include <cstdio>
-#include <map>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -42,6 +41,19 @@ nlohmann::json matrixJson(const Eigen::Matrix3f& R) {
   return rows;
 }
 
+/// Pixels per object id 1..objects in a label image; index 0 counts every other pixel.
+std::vector<std::size_t> countLabels(const cv::Mat& label, std::size_t objects) {
+  std::vector<std::size_t> count(objects + 1, 0);
+  for (int v = 0; v < label.rows; ++v) {
+    const std::int32_t* row = label.ptr<std::int32_t>(v);
+    for (int u = 0; u < label.cols; ++u) {
+      const auto id = static_cast<std::size_t>(row[u]);
+      ++count[row[u] > 0 && id <= objects ? id : 0];
+    }
+  }
+  return count;
+}
+
 }  // namespace
 
 fs::path checkNewFolder(const fs::path& out_path) {
@@ -64,7 +76,7 @@ SceneAndPath composeSceneSeenAlongPath(const SceneConfig& config,
                                        const Intrinsics& intrinsics) {
   constexpr int kAttempts = 8;
   constexpr std::size_t kPoseStride = 10;
-  constexpr int kMinPixels = 20;
+  constexpr std::size_t kMinPixels = 20;
   OffscreenRenderer renderer(intrinsics);
   SceneAndPath result;
   for (int attempt = 0; attempt < kAttempts; ++attempt) {
@@ -76,18 +88,15 @@ SceneAndPath composeSceneSeenAlongPath(const SceneConfig& config,
     p.seed = c.seed;
     result.path = makeHandheldPath(result.scene, p);
     renderer.setMesh(result.scene.mesh);
-    std::vector<int> best(result.scene.objects.size() + 1, 0);
+    const std::size_t objects = result.scene.objects.size();
+    std::vector<std::size_t> best(objects + 1, 0);
     for (std::size_t i = 0; i < result.path.size(); i += kPoseStride) {
-      std::vector<int> count(best.size(), 0);
-      const cv::Mat label = renderer.render(result.path.poses[i].T_W_C).label;
-      for (int v = 0; v < label.rows; ++v) {
-        const std::int32_t* row = label.ptr<std::int32_t>(v);
-        for (int u = 0; u < label.cols; ++u) ++count[static_cast<std::size_t>(row[u])];
-      }
-      for (std::size_t id = 1; id < best.size(); ++id) best[id] = std::max(best[id], count[id]);
+      const std::vector<std::size_t> count =
+          countLabels(renderer.render(result.path.poses[i].T_W_C).label, objects);
+      for (std::size_t id = 1; id <= objects; ++id) best[id] = std::max(best[id], count[id]);
     }
     const auto hidden =
-        std::count_if(best.begin() + 1, best.end(), [](int n) { return n < kMinPixels; });
+        std::count_if(best.begin() + 1, best.end(), [](std::size_t n) { return n < kMinPixels; });
     if (hidden == 0) return result;
     log::info("scene seed " + std::to_string(c.seed) + ": " + std::to_string(hidden) +
               " object(s) hidden along the path; composing again");
@@ -101,6 +110,11 @@ std::vector<Visibility> writeSyntheticRecording(const SyntheticScene& scene, con
                                                 const fs::path& out_path, ProgressBar* progress) {
   sensor.validate();
   intrinsics.validate();
+  for (std::size_t i = 0; i < scene.objects.size(); ++i) {
+    if (scene.objects[i].id != static_cast<std::int32_t>(i + 1)) {
+      throw std::invalid_argument("synthetic recording: object ids must run 1..N in order");
+    }
+  }
   const fs::path out_dir = checkNewFolder(out_path);
   fs::path tmp = out_dir;
   tmp += ".tmp-" + std::to_string(::getpid());
@@ -114,8 +128,9 @@ std::vector<Visibility> writeSyntheticRecording(const SyntheticScene& scene, con
   try {
     OffscreenRenderer renderer(intrinsics);
     renderer.setMesh(scene.mesh);
-    std::map<std::int32_t, Visibility> seen;
-    for (const SceneObject& o : scene.objects) seen[o.id] = {o.id, 0, 0};
+    // Scene object ids run 1..N in order (composeScene): index by id.
+    std::vector<Visibility> seen(scene.objects.size() + 1);
+    for (const SceneObject& o : scene.objects) seen[static_cast<std::size_t>(o.id)].id = o.id;
     std::string rgb_txt = "# color images\n# timestamp filename\n";
     std::string depth_txt = "# depth maps\n# timestamp filename\n";
     std::string associations;
@@ -124,16 +139,10 @@ std::vector<Visibility> writeSyntheticRecording(const SyntheticScene& scene, con
       const RenderedView view = renderer.render(pose.T_W_C);
       const cv::Mat depth_m = applySensorModel(view, intrinsics, sensor, seed * 1000003ULL + i);
 
-      std::map<std::int32_t, std::size_t> counts;
-      for (int v = 0; v < view.label.rows; ++v) {
-        const std::int32_t* row = view.label.ptr<std::int32_t>(v);
-        for (int u = 0; u < view.label.cols; ++u) {
-          if (row[u] > 0) ++counts[row[u]];
-        }
-      }
-      for (const auto& [id, n] : counts) {
-        seen[id].pixels += n;
-        seen[id].frames += 1;
+      const std::vector<std::size_t> counts = countLabels(view.label, scene.objects.size());
+      for (std::size_t id = 1; id < counts.size(); ++id) {
+        seen[id].pixels += counts[id];
+        seen[id].frames += counts[id] > 0 ? 1 : 0;
       }
 
       cv::Mat depth16, label16, bgr;
@@ -182,9 +191,9 @@ std::vector<Visibility> writeSyntheticRecording(const SyntheticScene& scene, con
                            {"rotation", matrixJson(o.T_W_O.rotation())}}},
                          {"vertex_count", o.vertex_count},
                          {"touching", o.touching},
-                         {"visible_pixels", seen[o.id].pixels},
-                         {"frames_visible", seen[o.id].frames}});
-      visibility.push_back(seen[o.id]);
+                         {"visible_pixels", seen[static_cast<std::size_t>(o.id)].pixels},
+                         {"frames_visible", seen[static_cast<std::size_t>(o.id)].frames}});
+      visibility.push_back(seen[static_cast<std::size_t>(o.id)]);
     }
     const nlohmann::json gt = {
         {"format", "objscan synthetic scene ground truth, version 1"},
