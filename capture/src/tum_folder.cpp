@@ -196,15 +196,13 @@ void TumFolder::readAssociations(const fs::path& file) {
     f.depth = line.fields[depth_col + 1];
     frames_.push_back(f);
     if (line.fields.size() == 12) {
-      double v[8];
-      for (int k = 0; k < 8; ++k) v[k] = parseStamp(file, line, 4 + k);
-      const Eigen::Quaterniond q(v[7], v[4], v[5], v[6]);
-      if (std::abs(q.norm() - 1.0) > 0.01) {
-        throw InputError(file, where + "ground-truth quaternion does not have norm 1");
+      std::array<double, 8> v{};
+      for (std::size_t k = 0; k < 8; ++k) v[k] = parseStamp(file, line, 4 + k);
+      try {
+        gt.poses.push_back(stampedPoseFromTum(v));
+      } catch (const std::invalid_argument& e) {
+        throw InputError(file, where + "ground-truth pose " + e.what());
       }
-      gt.poses.push_back(
-          {v[0], poseFromTranslationQuaternion(Eigen::Vector3d(v[1], v[2], v[3]).cast<float>(),
-                                               q.cast<float>())});
     }
   }
   if (!gt.empty()) {

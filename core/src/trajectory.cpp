@@ -3,6 +3,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <stdexcept>
 #include <string>
 #include <string_view>
 
@@ -39,6 +40,25 @@ bool parseNumbers(std::string_view line, std::vector<double>& out, std::string& 
 }
 
 }  // namespace
+
+StampedPose stampedPoseFromTum(const std::array<double, 8>& v) {
+  for (double x : v) {
+    if (!std::isfinite(x)) throw std::invalid_argument("contains NaN or infinity");
+  }
+  const Eigen::Quaterniond q(v[7], v[4], v[5], v[6]);
+  if (std::abs(q.norm() - 1.0) > kQuaternionNormTolerance) {
+    throw std::invalid_argument("quaternion (qx qy qz qw) has norm " + std::to_string(q.norm()) +
+                                ", not 1 (is the column order 't tx ty tz qx qy qz qw'?)");
+  }
+  StampedPose sp;
+  sp.stamp_s = v[0];
+  sp.T_W_C = poseFromTranslationQuaternion(Eigen::Vector3d(v[1], v[2], v[3]).cast<float>(),
+                                           q.normalized().cast<float>());
+  if (!sp.T_W_C.translation().allFinite()) {
+    throw std::invalid_argument("a coordinate is too large (more than 3.4e38 m)");
+  }
+  return sp;
+}
 
 double Trajectory::durationS() const {
   return poses.size() < 2 ? 0.0 : poses.back().stamp_s - poses.front().stamp_s;
@@ -78,25 +98,15 @@ Trajectory readTumTrajectory(const std::filesystem::path& path) {
       throw InputError(path, where + "expected 8 numbers 't tx ty tz qx qy qz qw', found " +
                                  std::to_string(v.size()));
     }
-    for (double x : v) {
-      if (!std::isfinite(x)) throw InputError(path, where + "contains NaN or infinity");
-    }
-    if (!trajectory.poses.empty() && v[0] < trajectory.poses.back().stamp_s) {
-      throw InputError(
-          path, where + "time stamp " + std::to_string(v[0]) + " is earlier than the line before");
-    }
-    const Eigen::Quaterniond q(v[7], v[4], v[5], v[6]);
-    if (std::abs(q.norm() - 1.0) > kQuaternionNormTolerance) {
-      throw InputError(path, where + "quaternion (qx qy qz qw) has norm " +
-                                 std::to_string(q.norm()) +
-                                 ", not 1 (is the column order 't tx ty tz qx qy qz qw'?)");
-    }
     StampedPose sp;
-    sp.stamp_s = v[0];
-    sp.T_W_C = poseFromTranslationQuaternion(Eigen::Vector3d(v[1], v[2], v[3]).cast<float>(),
-                                             q.normalized().cast<float>());
-    if (!sp.T_W_C.translation().allFinite()) {
-      throw InputError(path, where + "a coordinate is too large (more than 3.4e38 m)");
+    try {
+      sp = stampedPoseFromTum({v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7]});
+    } catch (const std::invalid_argument& e) {
+      throw InputError(path, where + e.what());
+    }
+    if (!trajectory.poses.empty() && sp.stamp_s < trajectory.poses.back().stamp_s) {
+      throw InputError(path, where + "time stamp " + std::to_string(sp.stamp_s) +
+                                 " is earlier than the line before");
     }
     trajectory.poses.push_back(sp);
   }

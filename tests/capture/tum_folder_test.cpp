@@ -81,8 +81,18 @@ TEST(TumFolder, AssociationFileInEitherColumnOrderWithGroundTruth) {
   writeBytes(dir / "associations.txt",
              "100.0 depth/0.png 100.0 rgb/0.png 100.0 0 0 0 0 0 0 1\n"
              "100.033 depth/1.png 100.033 rgb/1.png 100.03 1 2 3 0 0 0 1\n");
+  {
+    const TumFolder folder(dir.path());
+    ASSERT_EQ(folder.size(), 2u);
+  }
+  const std::string good = testing::readBytes(dir / "associations.txt");
+  writeBytes(dir / "associations.txt",
+             good.substr(0, good.find('\n') + 1) +
+                 "100.033 depth/1.png 100.033 rgb/1.png 100.03 1 2 3 0 0 0 2\n");
+  testing::expectInputError([&] { TumFolder f(dir.path()); }, dir / "associations.txt",
+                            "line 2: ground-truth pose quaternion (qx qy qz qw) has norm 2");
+  writeBytes(dir / "associations.txt", good);
   const TumFolder folder(dir.path());
-  ASSERT_EQ(folder.size(), 2u);
   EXPECT_EQ(folder.frames()[1].depth, "depth/1.png");
   EXPECT_EQ(folder.frames()[1].rgb, "rgb/1.png");
   ASSERT_TRUE(folder.groundTruth().has_value());

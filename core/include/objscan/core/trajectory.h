@@ -1,5 +1,6 @@
 #pragma once
 
+#include <array>
 #include <filesystem>
 #include <vector>
 
@@ -26,6 +27,11 @@ struct Trajectory {
   /// Sum of the distances between consecutive camera positions, metres.
   double pathLengthM() const;
 };
+
+/// One TUM pose from its 8 numbers `t tx ty tz qx qy qz qw`; the quaternion is normalised.
+/// Throws std::invalid_argument naming the problem: NaN or infinity, a quaternion whose norm is
+/// off by more than 1 %, or a coordinate too large for float.
+StampedPose stampedPoseFromTum(const std::array<double, 8>& values);
 
 /// Reads a TUM trajectory. Lines starting with '#' and blank lines are skipped; a line may also be
 /// comma-separated. Quaternions are normalised; one whose norm is off by more than 1 % is an error.
