@@ -3,9 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
-#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 #include <sstream>
 
 #include "objscan/core/atomic_file.h"
@@ -148,16 +148,10 @@ TumFolder::TumFolder(const fs::path& dir) : dir_(dir) {
 
   const fs::path intrinsics_file = dir / "intrinsics.json";
   if (isFile(intrinsics_file)) {
-    intrinsics_ = readIntrinsicsJson(intrinsics_file);  // also proves the file parses
+    std::optional<double> depth_factor;
+    intrinsics_ = readIntrinsicsJson(intrinsics_file, &depth_factor);
     intrinsics_from_file_ = true;
-    const auto j = nlohmann::json::parse(readWholeFile(intrinsics_file));
-    if (j.contains("depth_factor")) {
-      if (!j["depth_factor"].is_number() || !(j["depth_factor"].get<double>() > 0.0)) {
-        throw InputError(intrinsics_file,
-                         "\"depth_factor\" must be a positive number (raw depth units per metre)");
-      }
-      depth_factor_ = j["depth_factor"].get<double>();
-    }
+    if (depth_factor) depth_factor_ = *depth_factor;
   }
 
   if (isFile(dir / "groundtruth.txt")) {

@@ -36,7 +36,8 @@ void Intrinsics::validate() const {
   }
 }
 
-Intrinsics readIntrinsicsJson(const std::filesystem::path& path) {
+Intrinsics readIntrinsicsJson(const std::filesystem::path& path,
+                              std::optional<double>* depth_factor) {
   const std::string text = readWholeFile(path);
   nlohmann::json j;
   try {
@@ -72,12 +73,24 @@ Intrinsics readIntrinsicsJson(const std::filesystem::path& path) {
   } catch (const std::invalid_argument& e) {
     throw InputError(path, e.what());
   }
+  if (depth_factor != nullptr) {
+    depth_factor->reset();
+    if (j.contains("depth_factor")) {
+      if (!j["depth_factor"].is_number() || !(j["depth_factor"].get<double>() > 0.0)) {
+        throw InputError(path,
+                         "\"depth_factor\" must be a positive number (raw depth units per metre)");
+      }
+      *depth_factor = j["depth_factor"].get<double>();
+    }
+  }
   return in;
 }
 
-void writeIntrinsicsJson(const std::filesystem::path& path, const Intrinsics& in) {
+void writeIntrinsicsJson(const std::filesystem::path& path, const Intrinsics& in,
+                         std::optional<double> depth_factor) {
   nlohmann::json j = {{"fx", in.fx_px}, {"fy", in.fy_px},       {"cx", in.cx_px},
                       {"cy", in.cy_px}, {"width", in.width_px}, {"height", in.height_px}};
+  if (depth_factor) j["depth_factor"] = *depth_factor;
   writeFileAtomically(path, j.dump(2) + "\n");
 }
 

@@ -165,11 +165,7 @@ std::vector<Visibility> writeSyntheticRecording(const SyntheticScene& scene, con
     writeFileAtomically(tmp / "associations.txt", associations);
     writeTumTrajectory(tmp / "groundtruth.txt", path);
 
-    nlohmann::json in = {{"fx", intrinsics.fx_px},       {"fy", intrinsics.fy_px},
-                         {"cx", intrinsics.cx_px},       {"cy", intrinsics.cy_px},
-                         {"width", intrinsics.width_px}, {"height", intrinsics.height_px},
-                         {"depth_factor", kDepthFactor}};
-    writeFileAtomically(tmp / "intrinsics.json", in.dump(2) + "\n");
+    writeIntrinsicsJson(tmp / "intrinsics.json", intrinsics, kDepthFactor);
     writePly(tmp / "scene_gt.ply", scene.mesh);
 
     nlohmann::json objects = nlohmann::json::array();

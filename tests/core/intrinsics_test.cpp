@@ -45,6 +45,25 @@ TEST(Intrinsics, JsonRoundTripIsExact) {
   EXPECT_EQ(readIntrinsicsJson(dir / "i.json"), in);
 }
 
+TEST(Intrinsics, DepthFactorIsReadAndWrittenWhenAsked) {
+  testing::TempDir dir;
+  const Intrinsics in = Intrinsics::xtionDefault();
+  writeIntrinsicsJson(dir / "with.json", in, 5000.0);
+  writeIntrinsicsJson(dir / "without.json", in);
+  std::optional<double> factor = 1.0;
+  EXPECT_EQ(readIntrinsicsJson(dir / "with.json", &factor), in);
+  EXPECT_EQ(factor, 5000.0);
+  EXPECT_EQ(readIntrinsicsJson(dir / "without.json", &factor), in);
+  EXPECT_FALSE(factor.has_value());
+  testing::writeBytes(
+      dir / "bad.json",
+      R"({"fx": 500, "fy": 500, "cx": 320, "cy": 240, "width": 640, "height": 480, "depth_factor": -5})");
+  EXPECT_NO_THROW(readIntrinsicsJson(dir / "bad.json"))
+      << "not asked for: ignored like any extra key";
+  testing::expectInputError([&] { readIntrinsicsJson(dir / "bad.json", &factor); },
+                            dir / "bad.json", "\"depth_factor\" must be a positive number");
+}
+
 TEST(Intrinsics, BadJsonFilesAreInputErrors) {
   testing::TempDir dir;
   testing::writeBytes(dir / "broken.json", "{\"fx\": 500,");

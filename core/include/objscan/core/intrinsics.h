@@ -1,6 +1,7 @@
 #pragma once
 
 #include <filesystem>
+#include <optional>
 
 namespace objscan {
 
@@ -28,11 +29,15 @@ struct Intrinsics {
 };
 
 /// Reads `{"fx": .., "fy": .., "cx": .., "cy": .., "width": .., "height": ..}` (extra keys
-/// ignored). Throws InputError naming the file when it is missing, not JSON, lacks a key or fails
-/// validate().
-Intrinsics readIntrinsicsJson(const std::filesystem::path& path);
+/// ignored). With `depth_factor` given, the optional key "depth_factor" (raw depth units per metre,
+/// as recordings store it beside their intrinsics) is read into it, or left empty when absent.
+/// Throws InputError naming the file when it is missing, not JSON, lacks a key, fails validate(),
+/// or has a depth_factor that is not a positive number.
+Intrinsics readIntrinsicsJson(const std::filesystem::path& path,
+                              std::optional<double>* depth_factor = nullptr);
 
-/// Writes the same format atomically. Throws OutputError.
-void writeIntrinsicsJson(const std::filesystem::path& path, const Intrinsics& intrinsics);
+/// Writes the same format atomically, with "depth_factor" when given. Throws OutputError.
+void writeIntrinsicsJson(const std::filesystem::path& path, const Intrinsics& intrinsics,
+                         std::optional<double> depth_factor = std::nullopt);
 
 }  // namespace objscan
