@@ -17,11 +17,6 @@ void addQuad(TriangleMesh& m, int a, int b, int c, int d) {
   if (a != c && c != d && a != d) m.triangles.emplace_back(a, c, d);
 }
 
-TriangleMesh translated(TriangleMesh m, const Eigen::Vector3f& offset) {
-  for (auto& p : m.positions) p += offset;
-  return m;
-}
-
 TriangleMesh mug(float v) {
   const float r = 0.040f + 0.006f * v, h = 0.095f, wall = 0.004f, floor = 0.006f;
   TriangleMesh m =
@@ -119,6 +114,17 @@ TriangleMesh banana(float v) {
 }
 
 }  // namespace
+
+TriangleMesh translated(TriangleMesh m, const Eigen::Vector3f& offset_m) {
+  for (auto& p : m.positions) p += offset_m;
+  return m;
+}
+
+TriangleMesh transformed(TriangleMesh m, const Pose& T) {
+  for (auto& p : m.positions) p = T * p;
+  for (auto& n : m.normals) n = T.linear() * n;
+  return m;
+}
 
 void restOnGround(TriangleMesh& m) {
   const Eigen::AlignedBox3f box = m.bounds();

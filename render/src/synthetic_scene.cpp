@@ -88,11 +88,6 @@ bool inside(const Footprint& f, const Area& area) {
   return true;
 }
 
-TriangleMesh placed(TriangleMesh m, const Eigen::Vector3f& at) {
-  for (auto& p : m.positions) p += at;
-  return m;
-}
-
 void addSupport(TriangleMesh& scene, TriangleMesh part, const Rgb8& color) {
   shapes::paint(part, color, 0);
   shapes::append(scene, part);
@@ -101,20 +96,24 @@ void addSupport(TriangleMesh& scene, TriangleMesh part, const Rgb8& color) {
 /// The preset's fixed geometry (label 0) and the areas objects stand on.
 std::vector<Area> buildSupports(ScenePreset preset, TriangleMesh& scene, Eigen::Vector3f& look_at) {
   const float wall = SyntheticScene::kWallY;
-  addSupport(scene, placed(shapes::box(5.0f, 4.0f, 0.02f), {0, wall - 2.0f, -0.02f}), kFloorColor);
-  addSupport(scene, placed(shapes::box(5.0f, 0.05f, 2.6f), {0, wall + 0.025f, 0}), kWallColor);
+  addSupport(scene, shapes::translated(shapes::box(5.0f, 4.0f, 0.02f), {0, wall - 2.0f, -0.02f}),
+             kFloorColor);
+  addSupport(scene, shapes::translated(shapes::box(5.0f, 0.05f, 2.6f), {0, wall + 0.025f, 0}),
+             kWallColor);
   std::vector<Area> areas;
   switch (preset) {
     case ScenePreset::kDesk: {
       const float top = 0.75f, w = 1.6f, d = 0.8f;
-      addSupport(scene, placed(shapes::box(w, d, 0.03f), {0, wall - d / 2, top - 0.03f}),
+      addSupport(scene,
+                 shapes::translated(shapes::box(w, d, 0.03f), {0, wall - d / 2, top - 0.03f}),
                  kWoodColor);
       for (const float sx : {-1.0f, 1.0f}) {
         for (const float sy : {-1.0f, 1.0f}) {
-          addSupport(scene,
-                     placed(shapes::box(0.05f, 0.05f, top - 0.03f),
-                            {sx * (w / 2 - 0.05f), wall - d / 2 + sy * (d / 2 - 0.05f), 0}),
-                     kWoodColor);
+          addSupport(
+              scene,
+              shapes::translated(shapes::box(0.05f, 0.05f, top - 0.03f),
+                                 {sx * (w / 2 - 0.05f), wall - d / 2 + sy * (d / 2 - 0.05f), 0}),
+              kWoodColor);
         }
       }
       areas.push_back({-w / 2 + 0.02f, w / 2 - 0.02f, wall - d + 0.02f, wall, top, 1.0f});
@@ -125,14 +124,16 @@ std::vector<Area> buildSupports(ScenePreset preset, TriangleMesh& scene, Eigen::
       const float w = 1.0f, d = 0.32f, board = 0.02f;
       const float levels[] = {0.45f, 0.85f, 1.25f, 1.65f};
       for (const float sx : {-1.0f, 1.0f}) {
-        addSupport(
-            scene,
-            placed(shapes::box(board, d, 1.67f), {sx * (w / 2 + board / 2), wall - d / 2, 0}),
-            kWoodColor);
+        addSupport(scene,
+                   shapes::translated(shapes::box(board, d, 1.67f),
+                                      {sx * (w / 2 + board / 2), wall - d / 2, 0}),
+                   kWoodColor);
       }
       for (std::size_t i = 0; i < std::size(levels); ++i) {
-        addSupport(scene, placed(shapes::box(w, d, board), {0, wall - d / 2, levels[i] - board}),
-                   kWoodColor);
+        addSupport(
+            scene,
+            shapes::translated(shapes::box(w, d, board), {0, wall - d / 2, levels[i] - board}),
+            kWoodColor);
         if (i + 1 < std::size(levels)) {
           areas.push_back({-w / 2, w / 2, wall - d, wall, levels[i],
                            levels[i + 1] - board - levels[i] - 0.01f});
@@ -143,8 +144,10 @@ std::vector<Area> buildSupports(ScenePreset preset, TriangleMesh& scene, Eigen::
     }
     case ScenePreset::kCounter: {
       const float top = 0.9f, w = 2.0f, d = 0.6f;
-      addSupport(scene, placed(shapes::box(w, d, top), {0, wall - d / 2, 0}), kCounterColor);
-      addSupport(scene, placed(shapes::box(w, 0.35f, 0.7f), {0, wall - 0.175f, 1.5f}), kWoodColor);
+      addSupport(scene, shapes::translated(shapes::box(w, d, top), {0, wall - d / 2, 0}),
+                 kCounterColor);
+      addSupport(scene, shapes::translated(shapes::box(w, 0.35f, 0.7f), {0, wall - 0.175f, 1.5f}),
+                 kWoodColor);
       areas.push_back({-w / 2 + 0.02f, w / 2 - 0.02f, wall - d + 0.02f, wall, top, 0.55f});
       look_at = {0, wall - d / 2, top + 0.05f};
       break;
@@ -250,11 +253,10 @@ SyntheticScene composeScene(const SceneConfig& config) {
                                        [&](const Footprint& t) { return overlap(f, t); })) {
         continue;
       }
-      TriangleMesh sheet = shapes::box(0.21f, 0.297f, 0.001f);
       const Pose T = Pose(Eigen::Translation3f(f.centre.x(), f.centre.y(), a.z) *
                           Eigen::AngleAxisf(f.yaw, Eigen::Vector3f::UnitZ()));
-      for (auto& p : sheet.positions) p = T * p;
-      addSupport(scene.mesh, sheet, kPaperColor);
+      addSupport(scene.mesh, shapes::transformed(shapes::box(0.21f, 0.297f, 0.001f), T),
+                 kPaperColor);
       taken.push_back(f);
     }
   }
@@ -319,7 +321,7 @@ SyntheticScene composeScene(const SceneConfig& config) {
         o.box_max_O = box.max();
         o.vertex_count = object.positions.size();
         o.touching = touching;
-        for (auto& p : object.positions) p = o.T_W_O * p;
+        object = shapes::transformed(std::move(object), o.T_W_O);
         shapes::paint(object, kPalette[static_cast<std::size_t>(id - 1) % std::size(kPalette)], id);
         shapes::append(scene.mesh, object);
         scene.objects.push_back(o);

@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "objscan/core/pose.h"
 #include "objscan/core/triangle_mesh.h"
 
 /// Procedural household objects and building blocks for synthetic scenes. Every shape is built in
@@ -28,6 +29,12 @@ TriangleMesh tube(const std::function<Eigen::Vector3f(float)>& centre,
 
 /// Appends `part` to `mesh` (positions, triangles; normals/colours/labels if both have them).
 void append(TriangleMesh& mesh, const TriangleMesh& part);
+
+/// The mesh moved by `offset_m`.
+TriangleMesh translated(TriangleMesh mesh, const Eigen::Vector3f& offset_m);
+
+/// The mesh with positions mapped by T (p -> T p) and normals rotated with it.
+TriangleMesh transformed(TriangleMesh mesh, const Pose& T);
 
 /// Moves a mesh so that it rests on z = 0, centred on the z axis (its xy bounding box centre).
 void restOnGround(TriangleMesh& mesh);
