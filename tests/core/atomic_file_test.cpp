@@ -1,9 +1,6 @@
 #include "objscan/core/atomic_file.h"
 
 #include <gtest/gtest.h>
-#include <sys/resource.h>
-
-#include <csignal>
 
 #include "objscan/core/error.h"
 #include "test_support.h"
@@ -11,18 +8,12 @@
 namespace objscan {
 namespace {
 
-std::size_t entries(const std::filesystem::path& dir) {
-  std::size_t n = 0;
-  for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator(dir)) ++n;
-  return n;
-}
-
 TEST(AtomicFile, WritesAndReplacesWholeContents) {
   testing::TempDir dir;
   writeFileAtomically(dir / "f", "first version, longer");
   writeFileAtomically(dir / "f", "second");
   EXPECT_EQ(readWholeFile(dir / "f"), "second");
-  EXPECT_EQ(entries(dir.path()), 1u);
+  EXPECT_EQ(testing::entryCount(dir.path()), 1u);
 }
 
 TEST(AtomicFile, ReplacedFileKeepsItsPermissions) {
@@ -41,24 +32,19 @@ TEST(AtomicFile, FailedWriteLeavesTheOldFileAndNoTemporary) {
   // for root too (directory permissions do not).
   testing::TempDir dir;
   writeFileAtomically(dir / "f", "old");
-  struct rlimit saved {};
-  ASSERT_EQ(::getrlimit(RLIMIT_FSIZE, &saved), 0);
-  const auto old_handler = std::signal(SIGXFSZ, SIG_IGN);
-  struct rlimit small = saved;
-  small.rlim_cur = 4;
-  ASSERT_EQ(::setrlimit(RLIMIT_FSIZE, &small), 0);
   bool threw = false;
-  try {
-    writeFileAtomically(dir / "f", std::string(1000, 'n'));
-  } catch (const OutputError& e) {
-    threw = true;
-    EXPECT_NE(std::string(e.what()).find("write failed"), std::string::npos) << e.what();
+  {
+    const testing::FileSizeLimit limit(4);
+    try {
+      writeFileAtomically(dir / "f", std::string(1000, 'n'));
+    } catch (const OutputError& e) {
+      threw = true;
+      EXPECT_NE(std::string(e.what()).find("write failed"), std::string::npos) << e.what();
+    }
   }
-  ::setrlimit(RLIMIT_FSIZE, &saved);
-  std::signal(SIGXFSZ, old_handler);
   EXPECT_TRUE(threw);
   EXPECT_EQ(readWholeFile(dir / "f"), "old");
-  EXPECT_EQ(entries(dir.path()), 1u);
+  EXPECT_EQ(testing::entryCount(dir.path()), 1u);
 }
 
 TEST(AtomicFile, FailedRenameRemovesTheTemporary) {
@@ -66,7 +52,7 @@ TEST(AtomicFile, FailedRenameRemovesTheTemporary) {
   std::filesystem::create_directories(dir / "target" / "inside");
   EXPECT_THROW(writeFileAtomically(dir / "target", "data"), OutputError);
   EXPECT_TRUE(std::filesystem::is_directory(dir / "target" / "inside"));
-  EXPECT_EQ(entries(dir.path()), 1u);
+  EXPECT_EQ(testing::entryCount(dir.path()), 1u);
   EXPECT_THROW(writeFileAtomically(dir / "missing" / "f", "x"), OutputError);
 }
 

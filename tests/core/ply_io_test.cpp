@@ -470,10 +470,7 @@ TEST(PlyIo, WriteReplacesAtomicallyAndLeavesNoTemporaryFiles) {
   writePly(dir / "m.ply", a);
   writePly(dir / "m.ply", b);
   EXPECT_TRUE(testing::bitwiseEqual(readPly(dir / "m.ply"), b));
-  std::size_t files = 0;
-  for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator(dir.path()))
-    ++files;
-  EXPECT_EQ(files, 1u);
+  EXPECT_EQ(testing::entryCount(dir.path()), 1u);
   EXPECT_THROW(writePly(dir / "no_such_dir" / "m.ply", a), OutputError);
 }
 

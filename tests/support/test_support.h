@@ -25,6 +25,24 @@ class TempDir {
 };
 
 void writeBytes(const std::filesystem::path& path, const std::string& bytes);
+
+/// How many entries a folder holds (not recursive).
+std::size_t entryCount(const std::filesystem::path& dir);
+
+/// While alive, files this process writes are limited to `bytes` (RLIMIT_FSIZE): a write past
+/// the limit fails with EFBIG, as on a full disk, and that works for root too (directory
+/// permissions do not). SIGXFSZ is ignored meanwhile; both are restored on destruction.
+class FileSizeLimit {
+ public:
+  explicit FileSizeLimit(std::uint64_t bytes);
+  ~FileSizeLimit();
+  FileSizeLimit(const FileSizeLimit&) = delete;
+  FileSizeLimit& operator=(const FileSizeLimit&) = delete;
+
+ private:
+  std::uint64_t saved_soft_limit_ = 0;
+  void (*saved_handler_)(int) = nullptr;
+};
 std::string readBytes(const std::filesystem::path& path);
 
 /// An axis-aligned cube of side `side_m` centred at the origin: 8 vertices, 12 outward triangles.
