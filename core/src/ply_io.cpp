@@ -2,9 +2,9 @@
 //
 // Written by hand rather than taken from a library: Debian 12 packages no stand-alone PLY library
 // (tinyply, happly, rply, miniply are absent), and bench/ply_read_bench measured the readers that
-// ship inside bigger packages on a 400k-face mesh (README, "Benchmarks"): PCL's PLYReader is 7-11x
+// ship inside bigger packages on a 400k-face mesh (README, "Benchmarks"): PCL's PLYReader is 6-16x
 // slower than this file, VTK's reader (through PCL) 4-13x slower and crashes or silently accepts
-// truncated files, Open3D's rply-based reader 2.6-4x slower and would pull the whole Open3D
+// truncated files, Open3D's rply-based reader 1.6-4.5x slower and would pull the whole Open3D
 // runtime into core. PCL and Open3D also accept an ASCII file cut inside its last number, reading
 // a different value. What this file adds is strictness: every count is checked against the bytes
 // that are there before anything is allocated, a value must be followed by a separator, and every
