@@ -5,9 +5,12 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <memory>
 #include <set>
 #include <string>
 
+#include "objscan/capture/oni_container.h"
+#include "objscan/capture/openni.h"
 #include "objscan/capture/tum_folder.h"
 #include "objscan/core/error.h"
 #include "objscan/core/ply_io.h"
@@ -193,6 +196,28 @@ bool startsWith(const fs::path& path, std::string_view magic) {
 
 }  // namespace
 
+static void describeOni(const fs::path& path) {
+  const capture::OniFileSummary summary = capture::inspectOniFile(path);  // throws when broken
+  row("recording", "OpenNI2 .oni, " + bytesText(summary.bytes));
+  std::string streams = capture::describe(summary);
+  std::size_t start = 0;
+  while (start < streams.size()) {
+    const std::size_t end = streams.find('\n', start);
+    row("stream", streams.substr(start, end - start));
+    start = end == std::string::npos ? streams.size() : end + 1;
+  }
+  const std::unique_ptr<capture::FrameSource> source = capture::openOniFile(path);
+  const capture::SourceInfo& info = source->info();
+  const Intrinsics& in = info.intrinsics;
+  row("intrinsics", fmt("fx %.2f fy %.2f cx %.2f cy %.2f, %dx%d (%s)", in.fx_px, in.fy_px, in.cx_px,
+                        in.cy_px, in.width_px, in.height_px, info.intrinsics_origin.c_str()));
+  row("frames", fmt("%zu", info.frame_count.value_or(0)));
+  row("ground truth",
+      info.ground_truth ? fmt("%zu poses (%s)", info.ground_truth->size(),
+                              capture::RecordingSidecars::of(path).ground_truth.filename().c_str())
+                        : std::string("none"));
+}
+
 void runInfo(const fs::path& path) {
   std::error_code ec;
   const fs::file_status status = fs::status(path, ec);
@@ -217,8 +242,7 @@ void runInfo(const fs::path& path) {
   if (startsWith(path, "ply") || ext == ".ply") {
     describeMesh(path);
   } else if (ext == ".oni") {
-    throw InputError(path,
-                     "reading .oni recordings is not built yet (Step C brings OpenNI2 replay)");
+    describeOni(path);
   } else if (ext == ".txt") {
     describeTrajectory(path);
   } else {

@@ -11,6 +11,7 @@
 #include "info_command.h"
 #include "objscan/core/error.h"
 #include "objscan/core/log.h"
+#include "record_command.h"
 #include "synth_command.h"
 
 namespace {
@@ -27,8 +28,6 @@ struct Planned {
 };
 
 constexpr Planned kPlanned[] = {
-    {"devices", "List connected OpenNI2 sensors (Asus Xtion, Kinect v1, ...)", "Step C"},
-    {"record", "Record a live sensor session to an .oni file; Ctrl-C stops cleanly", "Step C"},
     {"fuse", "Fuse a recording into DIR/mesh.ply and DIR/trajectory.txt (TSDF + ICP)", "Step D"},
     {"discover", "Segment meshes, measure and rank object hypotheses into DIR", "Step E"},
     {"render", "Render snapshots of the top hypotheses in DIR into DIR/renders/", "Step F"},
@@ -95,6 +94,29 @@ int run(int argc, char** argv) {
   synth->add_option("--intrinsics", synth_options.intrinsics,
                     "intrinsics.json (fx, fy, cx, cy, width, height); default: Xtion 640x480");
 
+  CLI::App* devices =
+      app.add_subcommand("devices", "List connected OpenNI2 sensors (Asus Xtion, Kinect v1, ...)");
+
+  RecordCommandOptions record_options;
+  CLI::App* record = app.add_subcommand(
+      "record", "Record a sensor session to an .oni file (depth lossless); Ctrl-C stops cleanly");
+  record->add_option("--out", record_options.out, "The .oni file to write")->required();
+  record->add_option("--device", record_options.device,
+                     "Sensor URI (objscan devices lists them); default: the first one. "
+                     "virtual:<folder> or virtual:synth:<seed> streams a dataset or a synthetic "
+                     "scene through objscan's virtual OpenNI2 sensor");
+  auto* frames_option =
+      record->add_option("--frames", record_options.frames, "Stop after this many frames")
+          ->check(CLI::PositiveNumber);
+  record->add_option("--seconds", record_options.seconds, "Stop after this many seconds")
+      ->check(CLI::PositiveNumber)
+      ->excludes(frames_option);
+  record->add_flag("--compress-color", record_options.compress_color,
+                   "Store colour as JPEG (lossy, about 10x smaller); depth stays lossless");
+  record->add_option("--intrinsics", record_options.intrinsics,
+                     "intrinsics.json stored with the recording (X.oni.json) instead of what the "
+                     "sensor reports; replay uses it");
+
   std::vector<std::pair<CLI::App*, const Planned*>> planned;
   for (const Planned& p : kPlanned) {
     CLI::App* sub =
@@ -136,6 +158,8 @@ int run(int argc, char** argv) {
     }
   }
   if (info->parsed()) runInfo(info_path);
+  if (devices->parsed()) runDevices();
+  if (record->parsed()) return runRecord(record_options);
   if (synth->parsed()) runSynth(synth_options);
   return kExitSuccess;
 }

@@ -8,11 +8,14 @@
 #include <optional>
 #include <sstream>
 
+#include "image_files.h"
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/error.h"
 
 namespace objscan::capture {
 namespace fs = std::filesystem;
+using detail::isFile;
+using detail::readImage;
 
 namespace {
 
@@ -24,17 +27,6 @@ struct IndexLine {
   int line_no = 0;
   std::vector<std::string> fields;
 };
-
-/// Whether `path` is a regular file; a path the system cannot even look at (a name too long,
-/// no permission) is an InputError rather than a filesystem_error.
-bool isFile(const fs::path& path) {
-  std::error_code ec;
-  const fs::file_status status = fs::status(path, ec);
-  if (ec && ec != std::errc::no_such_file_or_directory && ec != std::errc::not_a_directory) {
-    throw InputError(path, "cannot access: " + ec.message());
-  }
-  return status.type() == fs::file_type::regular;
-}
 
 std::vector<IndexLine> readIndex(const fs::path& file) {
   const std::string text = readWholeFile(file);
@@ -85,27 +77,6 @@ std::vector<std::pair<double, fs::path>> readStampedFiles(const fs::path& file) 
   std::stable_sort(entries.begin(), entries.end(),
                    [](const auto& a, const auto& b) { return a.first < b.first; });
   return entries;
-}
-
-/// Reads and decodes an image file. A PNG or JPEG must end with its end marker (IEND chunk, EOI):
-/// that catches truncated files before the codec sees them, so the user gets one clear error
-/// instead of the codec's own messages on stderr.
-cv::Mat readImage(const fs::path& path, int flags) {
-  const std::string bytes = readWholeFile(path);
-  if (bytes.empty()) throw InputError(path, "the image file is empty");
-  static constexpr std::string_view kPngMagic("\x89PNG\r\n\x1a\n", 8);
-  static constexpr std::string_view kPngEnd("IEND\xae\x42\x60\x82", 8);
-  const std::string_view view(bytes);
-  if (view.starts_with(kPngMagic) && !view.ends_with(kPngEnd)) {
-    throw InputError(path, "the PNG file is truncated (it has no IEND end chunk)");
-  }
-  if (view.starts_with("\xff\xd8") && !view.ends_with("\xff\xd9")) {
-    throw InputError(path, "the JPEG file is truncated (it has no end-of-image marker)");
-  }
-  cv::Mat image = cv::imdecode(
-      cv::Mat(1, static_cast<int>(bytes.size()), CV_8UC1, const_cast<char*>(bytes.data())), flags);
-  if (image.empty()) throw InputError(path, "cannot be decoded as a PNG or JPEG image");
-  return image;
 }
 
 }  // namespace

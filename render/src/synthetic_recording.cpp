@@ -56,6 +56,16 @@ std::vector<std::size_t> countLabels(const cv::Mat& label, std::size_t objects) 
 
 }  // namespace
 
+SyntheticFrame renderSyntheticFrame(OffscreenRenderer& renderer, const Pose& T_W_C,
+                                    std::size_t index, const SensorModelConfig& sensor,
+                                    std::uint64_t noise_seed) {
+  SyntheticFrame frame;
+  frame.view = renderer.render(T_W_C);
+  frame.depth_m =
+      applySensorModel(frame.view, renderer.intrinsics(), sensor, noise_seed * 1000003ULL + index);
+  return frame;
+}
+
 fs::path checkNewFolder(const fs::path& out_path) {
   // "out/" and "out" are the same folder; the temporary sibling must not land inside it.
   fs::path out_dir = out_path.lexically_normal();
@@ -136,8 +146,9 @@ std::vector<Visibility> writeSyntheticRecording(const SyntheticScene& scene, con
     std::string associations;
     for (std::size_t i = 0; i < path.size(); ++i) {
       const StampedPose& pose = path.poses[i];
-      const RenderedView view = renderer.render(pose.T_W_C);
-      const cv::Mat depth_m = applySensorModel(view, intrinsics, sensor, seed * 1000003ULL + i);
+      const SyntheticFrame frame = renderSyntheticFrame(renderer, pose.T_W_C, i, sensor, seed);
+      const RenderedView& view = frame.view;
+      const cv::Mat& depth_m = frame.depth_m;
 
       const std::vector<std::size_t> counts = countLabels(view.label, scene.objects.size());
       for (std::size_t id = 1; id < counts.size(); ++id) {

@@ -6,6 +6,8 @@
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <chrono>
+#include <optional>
 
 #include <gtest/gtest.h>
 
@@ -129,7 +131,9 @@ void expectInputError(const std::function<void()>& action, const fs::path& path,
   }
 }
 
-ProcessResult runProcess(const std::vector<std::string>& argv) {
+ProcessResult runProcess(const std::vector<std::string>& argv) { return runProcess(argv, {}); }
+
+ProcessResult runProcess(const std::vector<std::string>& argv, const ProcessOptions& options) {
   int out_pipe[2], err_pipe[2];
   if (::pipe2(out_pipe, O_CLOEXEC) != 0 || ::pipe2(err_pipe, O_CLOEXEC) != 0)
     throw std::runtime_error("pipe failed");
@@ -142,7 +146,11 @@ ProcessResult runProcess(const std::vector<std::string>& argv) {
   for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
   args.push_back(nullptr);
   pid_t pid = 0;
-  const int rc = ::posix_spawn(&pid, args[0], &actions, nullptr, args.data(), environ);
+  std::vector<char*> env;
+  for (char** e = environ; *e != nullptr; ++e) env.push_back(*e);
+  for (const auto& e : options.env) env.push_back(const_cast<char*>(e.c_str()));
+  env.push_back(nullptr);
+  const int rc = ::posix_spawn(&pid, args[0], &actions, nullptr, args.data(), env.data());
   posix_spawn_file_actions_destroy(&actions);
   ::close(out_pipe[1]);
   ::close(err_pipe[1]);
@@ -152,8 +160,27 @@ ProcessResult runProcess(const std::vector<std::string>& argv) {
   pollfd fds[2] = {{out_pipe[0], POLLIN, 0}, {err_pipe[0], POLLIN, 0}};
   std::string* sinks[2] = {&result.out, &result.err};
   int open_fds = 2;
+  bool signal_sent = options.signal == 0;
+  std::optional<std::chrono::steady_clock::time_point> signal_at;
   while (open_fds > 0) {
-    if (::poll(fds, 2, -1) < 0) break;
+    int timeout_ms = -1;
+    if (!signal_sent && !signal_at && result.err.find(options.signal_when) != std::string::npos) {
+      signal_at =
+          std::chrono::steady_clock::now() + std::chrono::milliseconds(options.signal_delay_ms);
+    }
+    if (!signal_sent && signal_at) {
+      const auto now = std::chrono::steady_clock::now();
+      if (now >= *signal_at) {
+        ::kill(pid, options.signal);
+        signal_sent = true;
+      } else {
+        timeout_ms = static_cast<int>(
+            std::chrono::duration_cast<std::chrono::milliseconds>(*signal_at - now).count() + 1);
+      }
+    }
+    const int ready = ::poll(fds, 2, timeout_ms);
+    if (ready < 0) break;
+    if (ready == 0) continue;
     for (int i = 0; i < 2; ++i) {
       if (fds[i].fd < 0 || !(fds[i].revents & (POLLIN | POLLHUP | POLLERR))) continue;
       char buf[4096];

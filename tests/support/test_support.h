@@ -70,6 +70,16 @@ struct ProcessResult {
 };
 ProcessResult runProcess(const std::vector<std::string>& argv);
 
+/// Extras for runProcess: environment variables added to the child's, and a signal sent once the
+/// child's stderr contains `signal_when` (then after `signal_delay_ms`).
+struct ProcessOptions {
+  std::vector<std::string> env;  ///< "NAME=value"
+  int signal = 0;                ///< e.g. SIGINT; 0 = none
+  std::string signal_when;
+  int signal_delay_ms = 0;
+};
+ProcessResult runProcess(const std::vector<std::string>& argv, const ProcessOptions& options);
+
 /// Lines of `text` without their '\n' (a final line without '\n' counts too).
 std::vector<std::string> lines(const std::string& text);
 

@@ -7,6 +7,7 @@
 #include "objscan/core/intrinsics.h"
 #include "objscan/core/progress.h"
 #include "objscan/core/trajectory.h"
+#include "objscan/render/offscreen_renderer.h"
 #include "objscan/render/sensor_model.h"
 #include "objscan/render/synthetic_scene.h"
 
@@ -37,14 +38,29 @@ SceneAndPath composeSceneSeenAlongPath(const SceneConfig& config,
                                        const HandheldPathConfig& path_config,
                                        const Intrinsics& intrinsics);
 
+/// One frame of a synthetic recording, before any file format touches it.
+struct SyntheticFrame {
+  RenderedView view;  ///< the ideal view: exact depth, colour (RGB), labels, incidence
+  cv::Mat depth_m;    ///< CV_32FC1: the sensor's depth, metres, 0 = no reading
+};
+
+/// Frame `index` of a recording along a path: renders the mesh uploaded to `renderer` from T_W_C
+/// and applies the sensor model with a seed derived from `noise_seed` and `index`, so a frame's
+/// noise does not depend on which other frames were rendered. writeSyntheticRecording writes
+/// these pixels and SyntheticSource streams them. Same thread-safety as `renderer`.
+SyntheticFrame renderSyntheticFrame(OffscreenRenderer& renderer, const Pose& T_W_C,
+                                    std::size_t index, const SensorModelConfig& sensor,
+                                    std::uint64_t noise_seed);
+
 /// Renders `scene` along `path` and writes a TUM RGB-D folder to `out_dir`:
 ///   rgb/ depth/ (16-bit PNG, value / 5000 = metres, 0 = no reading) label/ (16-bit PNG, object
 ///   id per pixel) rgb.txt depth.txt associations.txt groundtruth.txt intrinsics.json
 ///   scene_gt.ply (the scene with per-vertex object_id) scene_gt.json (objects, poses, boxes)
 /// Everything is written to a temporary folder next to `out_dir` and renamed into place at the
 /// end, so an interrupted run leaves no folder that looks complete. `out_dir` must not exist or be
-/// an empty folder (std::invalid_argument otherwise). `seed` drives the sensor noise; `progress`
-/// (optional) advances once per frame. Throws OutputError when writing fails.
+/// an empty folder (std::invalid_argument otherwise). `seed` drives the sensor noise: frame i is
+/// renderSyntheticFrame(renderer, pose i, i, sensor, seed). `progress` (optional) advances once
+/// per frame. Throws OutputError when writing fails.
 std::vector<Visibility> writeSyntheticRecording(const SyntheticScene& scene, const Trajectory& path,
                                                 const Intrinsics& intrinsics,
                                                 const SensorModelConfig& sensor, std::uint64_t seed,

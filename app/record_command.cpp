@@ -1,0 +1,122 @@
+#include "record_command.h"
+
+#include <atomic>
+#include <csignal>
+#include <cstdio>
+#include <memory>
+#include <string>
+
+#include "exit_codes.h"
+#include "frame_sources.h"
+#include "objscan/capture/openni.h"
+#include "objscan/capture/virtual_sensor.h"
+#include "objscan/core/intrinsics.h"
+#include "objscan/core/log.h"
+#include "objscan/core/trajectory.h"
+
+namespace objscan::app {
+namespace {
+
+std::atomic<bool> g_stop{false};
+
+extern "C" void onStopSignal(int) { g_stop.store(true); }
+
+/// Ctrl-C and SIGTERM set g_stop while recording; the previous handlers come back afterwards.
+class StopSignals {
+ public:
+  StopSignals() {
+    g_stop.store(false);
+    struct sigaction action {};
+    action.sa_handler = onStopSignal;
+    sigemptyset(&action.sa_mask);
+    sigaction(SIGINT, &action, &old_int_);
+    sigaction(SIGTERM, &action, &old_term_);
+  }
+  ~StopSignals() {
+    sigaction(SIGINT, &old_int_, nullptr);
+    sigaction(SIGTERM, &old_term_, nullptr);
+  }
+  StopSignals(const StopSignals&) = delete;
+  StopSignals& operator=(const StopSignals&) = delete;
+
+ private:
+  struct sigaction old_int_ {};
+  struct sigaction old_term_ {};
+};
+
+}  // namespace
+
+void runDevices() {
+  const std::vector<capture::SensorDescription> sensors = capture::listSensors();
+  if (sensors.empty()) {
+    std::printf(
+        "no sensor found (connect an Asus Xtion, PrimeSense Carmine or Kinect v1; objscan's "
+        "virtual sensor opens with --device virtual:<folder> or virtual:synth:<seed>)\n");
+    return;
+  }
+  for (const capture::SensorDescription& s : sensors) {
+    std::printf("%s\t%s %s\tUSB %04x:%04x\n", s.uri.c_str(), s.vendor.c_str(), s.name.c_str(),
+                s.usb_vendor_id, s.usb_product_id);
+  }
+}
+
+int runRecord(const RecordCommandOptions& options) {
+  capture::RecordOptions record;
+  record.out = options.out;
+  record.device_uri = options.device;
+  record.max_frames = options.frames;
+  record.max_seconds = options.seconds;
+  record.compress_color = options.compress_color;
+  if (!options.intrinsics.empty()) record.intrinsics = readIntrinsicsJson(options.intrinsics);
+
+  // Ground truth travels with recordings of a virtual sensor whose source has it. Opening the
+  // source here first also reports a bad folder before any recording starts.
+  std::optional<Trajectory> ground_truth;
+  if (capture::isVirtualSensorUri(options.device)) {
+    const capture::VirtualSensorUri uri = capture::parseVirtualSensorUri(options.device);
+    ground_truth = openFrameSource(uri.source, {})->info().ground_truth;
+  }
+
+  capture::RecordSummary summary;
+  {
+    StopSignals signals;
+    double last_report = 0.0;
+    bool announced = false;
+    summary = capture::recordSession(record, g_stop, [&](std::size_t frames, double seconds) {
+      if (!announced) {  // the first call comes once the sensor streams
+        announced = true;
+        log::info("recording " +
+                  (options.device.empty() ? std::string("the first sensor") : options.device) +
+                  " to " + options.out.string() + " (Ctrl-C stops)");
+      }
+      if (seconds - last_report >= 5.0) {
+        last_report = seconds;
+        log::info("recording: " + std::to_string(frames) + " frames, " +
+                  std::to_string(static_cast<int>(seconds)) + " s");
+      }
+    });
+  }
+  if (ground_truth && !ground_truth->poses.empty()) {
+    summary.ground_truth_file = capture::RecordingSidecars::of(options.out).ground_truth;
+    writeTumTrajectory(summary.ground_truth_file, *ground_truth);
+  }
+
+  std::printf("recording     %s\n", options.out.string().c_str());
+  std::printf("frames        %zu depth, %zu colour\n", summary.depth_frames, summary.color_frames);
+  std::printf("dropped       %zu\n", summary.dropped);
+  std::printf("duration      %.2f s\n", summary.duration_s);
+  std::printf("stopped by    %s\n", summary.stop_reason.c_str());
+  std::printf("sidecars      %s%s%s\n", summary.info_file.filename().string().c_str(),
+              summary.ground_truth_file.empty() ? "" : ", ",
+              summary.ground_truth_file.filename().string().c_str());
+  std::fflush(stdout);
+  if (summary.failed) {
+    std::fprintf(
+        stderr, "objscan: error: recording stopped early: %s; the %zu frames before it are in %s\n",
+        summary.stop_reason.c_str(), summary.depth_frames, options.out.string().c_str());
+    return kExitRuntimeFailure;
+  }
+  return kExitSuccess;
+}
+
+}  // namespace objscan::app

@@ -1,0 +1,370 @@
+// Recording and replay through the real OpenNI2 runtime, with objscan's virtual OpenNI2 sensor
+// standing in for an Xtion: virtual sensor -> `objscan record` -> .oni -> OpenNI2's file player.
+
+#include <OpenNI.h>
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <csignal>
+#include <filesystem>
+#include <opencv2/core.hpp>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "objscan/capture/folder_source.h"
+#include "objscan/capture/openni.h"
+#include "objscan/core/error.h"
+#include "objscan/core/trajectory.h"
+#include "objscan/render/synthetic_recording.h"
+#include "objscan/render/synthetic_source.h"
+#include "test_support.h"
+
+namespace objscan::capture {
+namespace {
+
+namespace fs = std::filesystem;
+using objscan::testing::ProcessOptions;
+using objscan::testing::ProcessResult;
+using objscan::testing::runProcess;
+using objscan::testing::TempDir;
+
+constexpr std::size_t kFolderFrames = 24;
+
+Intrinsics smallCamera() {
+  Intrinsics in;
+  in.width_px = 160;
+  in.height_px = 120;
+  in.fx_px = 142.6;
+  in.fy_px = 142.6;
+  in.cx_px = 79.5;
+  in.cy_px = 59.5;
+  return in;
+}
+
+std::vector<RgbdFrame> readAll(FrameSource& source) {
+  std::vector<RgbdFrame> frames;
+  for (;;) {
+    FrameResult r = source.next();
+    if (r.status == FrameStatus::kEndOfStream) break;
+    EXPECT_EQ(r.status, FrameStatus::kOk) << r.reason;
+    if (r.status == FrameStatus::kOk) frames.push_back(std::move(r.frame));
+  }
+  return frames;
+}
+
+/// Depth in whole millimetres, as OpenNI2 carries it.
+cv::Mat millimetres(const cv::Mat& depth_m) {
+  cv::Mat mm(depth_m.size(), CV_16UC1);
+  for (int v = 0; v < depth_m.rows; ++v) {
+    for (int u = 0; u < depth_m.cols; ++u) {
+      const float m = depth_m.at<float>(v, u);
+      mm.at<std::uint16_t>(v, u) =
+          std::isfinite(m) && m > 0.0f ? static_cast<std::uint16_t>(std::lround(m * 1000.0f)) : 0;
+    }
+  }
+  return mm;
+}
+
+bool sameImage(const cv::Mat& a, const cv::Mat& b) {
+  return a.size() == b.size() && a.type() == b.type() && cv::norm(a, b, cv::NORM_INF) == 0.0;
+}
+
+/// Frames must agree pixel for pixel: depth to the millimetre, colour exactly.
+void expectSameFrames(const std::vector<RgbdFrame>& expected, const std::vector<RgbdFrame>& got,
+                      std::size_t count) {
+  ASSERT_GE(expected.size(), count);
+  ASSERT_EQ(got.size(), count);
+  for (std::size_t i = 0; i < count; ++i) {
+    SCOPED_TRACE("frame " + std::to_string(i));
+    EXPECT_TRUE(sameImage(millimetres(expected[i].depth_m), millimetres(got[i].depth_m)));
+    EXPECT_TRUE(sameImage(expected[i].color_rgb, got[i].color_rgb));
+    EXPECT_NEAR(expected[i].stamp_s, got[i].stamp_s, 1e-6);
+  }
+}
+
+/// Lines objscan printed as errors (other stderr lines are progress and log messages).
+std::size_t errorLines(const std::string& err) {
+  std::size_t n = 0;
+  for (const std::string& line : objscan::testing::lines(err)) {
+    n += line.rfind("objscan: error: ", 0) == 0 ? 1 : 0;
+  }
+  return n;
+}
+
+class OpenNI : public ::testing::Test {
+ protected:
+  /// One synthetic recording folder (160x120, 24 frames) shared by the tests.
+  static void SetUpTestSuite() {
+    dir_ = new TempDir();
+    render::SceneConfig scene_config;
+    scene_config.objects = 3;
+    scene_config.seed = 5;
+    render::HandheldPathConfig path_config;
+    path_config.frames = static_cast<int>(kFolderFrames);
+    path_config.seed = 5;
+    const render::SceneAndPath sp =
+        render::composeSceneSeenAlongPath(scene_config, path_config, smallCamera());
+    render::writeSyntheticRecording(sp.scene, sp.path, smallCamera(), render::SensorModelConfig{},
+                                    5, folder());
+  }
+  static void TearDownTestSuite() {
+    delete dir_;
+    dir_ = nullptr;
+  }
+  static fs::path folder() { return dir_->path() / "synth"; }
+  static std::vector<RgbdFrame> folderFrames() {
+    auto source = openFolderSource(folder());
+    return readAll(*source);
+  }
+  static ProcessResult record(const std::string& device, const fs::path& out,
+                              const ProcessOptions& options = {},
+                              std::vector<std::string> extra = {}) {
+    std::vector<std::string> argv = {OBJSCAN_EXE, "record", "--device",
+                                     device,      "--out",  out.string()};
+    argv.insert(argv.end(), extra.begin(), extra.end());
+    return runProcess(argv, options);
+  }
+
+  TempDir out_;
+
+ private:
+  static TempDir* dir_;
+};
+
+TempDir* OpenNI::dir_ = nullptr;
+
+TEST_F(OpenNI, RecordThenReplayIsPixelIdenticalForADatasetFolder) {
+  const fs::path oni = out_.path() / "session.oni";
+  const ProcessResult r = record("virtual:" + folder().string(), oni);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("24 depth, 24 colour"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("dropped       0"), std::string::npos) << r.out;
+
+  {
+    auto replay = openOniFile(oni);
+    ASSERT_TRUE(replay->info().frame_count.has_value());
+    EXPECT_EQ(*replay->info().frame_count, kFolderFrames);
+    // The exact intrinsics travel in session.oni.json, the ground truth in its own sidecar.
+    EXPECT_EQ(replay->info().intrinsics.fx_px, smallCamera().fx_px);
+    EXPECT_EQ(replay->info().intrinsics.cy_px, smallCamera().cy_px);
+    ASSERT_TRUE(replay->info().ground_truth.has_value());
+    EXPECT_EQ(replay->info().ground_truth->size(), kFolderFrames);
+    expectSameFrames(folderFrames(), readAll(*replay), kFolderFrames);
+    // OpenNI2 gives one device per file: a second replay at the same time is refused clearly.
+    EXPECT_THROW(openOniFile(oni), InputError);
+  }
+  // Deterministic: a second replay gives the same frames again.
+  auto again = openOniFile(oni);
+  expectSameFrames(folderFrames(), readAll(*again), kFolderFrames);
+}
+
+TEST_F(OpenNI, RecordThenReplayIsPixelIdenticalForASynthSpec) {
+  const std::string spec = "synth:4,objects=2,frames=6";
+  const fs::path oni = out_.path() / "synth.oni";
+  const ProcessResult r = record("virtual:" + spec, oni);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  render::SyntheticSource direct(render::parseSynthSpec(spec), Intrinsics::xtionDefault());
+  auto replay = openOniFile(oni);
+  EXPECT_EQ(replay->info().intrinsics.width_px, 640);
+  expectSameFrames(readAll(direct), readAll(*replay), 6);
+}
+
+TEST_F(OpenNI, ReplaySelectionKeepsRecordingIndices) {
+  const fs::path oni = out_.path() / "session.oni";
+  ASSERT_EQ(record("virtual:" + folder().string(), oni).exit_code, 0);
+  FrameSelection selection;
+  selection.start = 2;
+  selection.end = 20;
+  selection.every = 5;
+  auto replay = openOniFile(oni, selection);
+  EXPECT_EQ(replay->info().frame_count, std::optional<std::size_t>(4));
+  const std::vector<RgbdFrame> all = folderFrames();
+  const std::vector<RgbdFrame> got = readAll(*replay);
+  ASSERT_EQ(got.size(), 4u);
+  for (std::size_t k = 0; k < got.size(); ++k) {
+    const std::size_t index = 2 + 5 * k;
+    EXPECT_EQ(got[k].index, static_cast<std::int64_t>(index));
+    EXPECT_TRUE(sameImage(millimetres(all[index].depth_m), millimetres(got[k].depth_m)));
+  }
+}
+
+TEST_F(OpenNI, LiveVirtualSensorDeliversEveryFrameInOrder) {
+  auto live = openSensor("virtual:" + folder().string() + "?fps=60");
+  EXPECT_TRUE(live->info().live);
+  EXPECT_EQ(live->info().frame_count, std::optional<std::size_t>(kFolderFrames));
+  expectSameFrames(folderFrames(), readAll(*live), kFolderFrames);
+}
+
+TEST_F(OpenNI, DevicesListsTheAnnouncedVirtualSensor) {
+  ProcessOptions options;
+  const std::string uri = "virtual:" + folder().string();
+  options.env = {"OBJSCAN_VIRTUAL_SENSOR=" + uri};
+  const ProcessResult r = runProcess({OBJSCAN_EXE, "devices"}, options);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.out.rfind(uri + "\tobjscan virtual sensor", 0), 0u) << r.out;
+
+  // The announced sensor is "the first sensor" for record.
+  const fs::path oni = out_.path() / "first.oni";
+  const ProcessResult rec =
+      runProcess({OBJSCAN_EXE, "record", "--out", oni.string(), "--frames", "5"}, options);
+  ASSERT_EQ(rec.exit_code, 0) << rec.err;
+  EXPECT_EQ(openOniFile(oni)->info().frame_count, std::optional<std::size_t>(5));
+}
+
+TEST_F(OpenNI, NoSensorAttachedIsOneClearError) {
+  // A private OpenNI2 runtime with only the file driver: no driver that could find a sensor,
+  // whatever is plugged into this machine.
+  const fs::path runtime = out_.path() / "runtime";
+  fs::create_directories(runtime / "OpenNI2" / "Drivers");
+  const fs::path real = fs::read_symlink(fs::path(OBJSCAN_OPENNI2_RUNTIME_DIR) / "libOpenNI2.so.0");
+  fs::create_symlink(real, runtime / "libOpenNI2.so.0");
+  fs::create_symlink(fs::read_symlink(fs::path(OBJSCAN_OPENNI2_RUNTIME_DIR) / "OpenNI2" /
+                                      "Drivers" / "libOniFile.so.0"),
+                     runtime / "OpenNI2" / "Drivers" / "libOniFile.so.0");
+  ProcessOptions options;
+  options.env = {"LD_LIBRARY_PATH=" + runtime.string()};
+  const fs::path oni = out_.path() / "none.oni";
+  const ProcessResult r =
+      runProcess({OBJSCAN_EXE, "record", "--out", oni.string(), "--frames", "5"}, options);
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(objscan::testing::lines(r.err).size(), 1u) << r.err;  // nothing but the error
+  EXPECT_NE(r.err.find("no sensor found"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(oni));
+  EXPECT_EQ(objscan::testing::entryCount(out_.path()), 1u);  // only runtime/: no partial file left
+}
+
+TEST_F(OpenNI, UnpluggedSensorEndsTheRecordingWithAClearErrorAndAReplayableFile) {
+  const fs::path oni = out_.path() / "unplugged.oni";
+  const ProcessResult r = record("virtual:" + folder().string() + "?unplug_after=7", oni);
+  EXPECT_EQ(r.exit_code, 1);
+  ASSERT_EQ(errorLines(r.err), 1u) << r.err;
+  EXPECT_NE(r.err.find("unplugged"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("the 7 frames before it are in"), std::string::npos) << r.err;
+  auto replay = openOniFile(oni);
+  expectSameFrames(folderFrames(), readAll(*replay), 7);
+}
+
+class OpenNIStop : public OpenNI, public ::testing::WithParamInterface<int> {};
+
+TEST_P(OpenNIStop, SignalStopsCleanlyAndKeepsEveryFrameBeforeIt) {
+  const fs::path oni = out_.path() / "stopped.oni";
+  ProcessOptions options;
+  options.signal = GetParam();
+  options.signal_when = "Ctrl-C stops";  // the recording has started
+  options.signal_delay_ms = 400;
+  // 10 frames per second: the 24 frames would take 2.4 s; the signal comes long before.
+  const ProcessResult r = record("virtual:" + folder().string() + "?fps=10", oni, options);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("stopped by    interrupted"), std::string::npos) << r.out;
+  auto replay = openOniFile(oni);
+  const std::vector<RgbdFrame> got = readAll(*replay);
+  EXPECT_GE(got.size(), 1u);
+  EXPECT_LT(got.size(), kFolderFrames);
+  EXPECT_NE(r.out.find("frames        " + std::to_string(got.size()) + " depth"), std::string::npos)
+      << r.out;
+  expectSameFrames(folderFrames(), got, got.size());
+}
+
+INSTANTIATE_TEST_SUITE_P(CtrlCAndTerm, OpenNIStop, ::testing::Values(SIGINT, SIGTERM));
+
+TEST_F(OpenNI, NearlyFullDiskStopsTheRecordingWithAReplayableFile) {
+  const fs::path oni = out_.path() / "full.oni";
+  ProcessResult r;
+  {
+    // The recorder stops while the file still has room for a second of frames in flight and its
+    // closing records: at 160x120 that margin is about 4.8 MB, so a 5.5 MB cap stops it early.
+    objscan::testing::FileSizeLimit limit(5'500'000);
+    r = record("virtual:" + folder().string() + "?fps=200", oni);
+  }
+  EXPECT_EQ(r.exit_code, 1) << r.out;
+  EXPECT_NE(r.err.find("disk is nearly full"), std::string::npos) << r.err;
+  auto replay = openOniFile(oni);
+  const std::vector<RgbdFrame> got = readAll(*replay);
+  EXPECT_GE(got.size(), 1u);
+  EXPECT_LT(got.size(), kFolderFrames);
+  expectSameFrames(folderFrames(), got, got.size());
+}
+
+TEST_F(OpenNI, BadRecordingsAreOneLineErrorsWithExitCode2) {
+  const fs::path oni = out_.path() / "good.oni";
+  ASSERT_EQ(record("virtual:" + folder().string(), oni, {}, {"--compress-color"}).exit_code, 0);
+  const std::string file = objscan::testing::readBytes(oni);
+  // OpenNI2's recorder on Linux leaves zeros after its last record (XnLib's truncate adds the
+  // offset twice); cutting those off loses nothing, so cut inside the records.
+  const std::string bytes = file.substr(0, file.find_last_not_of('\0') + 1);
+  ASSERT_GT(bytes.size(), 1000u);
+
+  auto expectBad = [&](const fs::path& path, const std::string& words) {
+    const ProcessResult r = runProcess({OBJSCAN_EXE, "info", path.string()});
+    EXPECT_EQ(r.exit_code, 2) << path << "\n" << r.out;
+    ASSERT_EQ(objscan::testing::lines(r.err).size(), 1u) << r.err;
+    EXPECT_NE(r.err.find(path.filename().string()), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find(words), std::string::npos) << r.err;
+  };
+  expectBad(out_.path() / "missing.oni", "no such file");
+  fs::create_directory(out_.path() / "dir.oni");
+  expectBad(out_.path() / "dir.oni", "directory");
+  objscan::testing::writeBytes(out_.path() / "text.oni", "hello, not a recording\n");
+  expectBad(out_.path() / "text.oni", "not an OpenNI recording");
+  for (const std::size_t cut : {std::size_t{3}, std::size_t{200}, bytes.size() / 3,
+                                bytes.size() * 9 / 10, bytes.size() - 1}) {
+    const fs::path cut_file = out_.path() / ("cut_" + std::to_string(cut) + ".oni");
+    objscan::testing::writeBytes(cut_file, bytes.substr(0, cut));
+    SCOPED_TRACE("cut at " + std::to_string(cut));
+    const ProcessResult r = runProcess({OBJSCAN_EXE, "info", cut_file.string()});
+    EXPECT_EQ(r.exit_code, 2) << r.out;
+    EXPECT_EQ(objscan::testing::lines(r.err).size(), 1u) << r.err;
+    EXPECT_NE(r.err.find(cut_file.filename().string()), std::string::npos) << r.err;
+  }
+}
+
+TEST_F(OpenNI, ColourOnlyRecordingIsRefused) {
+  // Record a colour-only stream with OpenNI2's own recorder.
+  const fs::path oni = out_.path() / "colour_only.oni";
+  ASSERT_EQ(openni::OpenNI::initialize(), openni::STATUS_OK);
+  {
+    openni::Device device;
+    const std::string uri = "virtual:" + folder().string() + "?streams=color&fps=100";
+    ASSERT_EQ(device.open(uri.c_str()), openni::STATUS_OK) << openni::OpenNI::getExtendedError();
+    EXPECT_FALSE(device.hasSensor(openni::SENSOR_DEPTH));
+    openni::VideoStream color;
+    ASSERT_EQ(color.create(device, openni::SENSOR_COLOR), openni::STATUS_OK);
+    openni::Recorder recorder;
+    ASSERT_EQ(recorder.create(oni.c_str()), openni::STATUS_OK);
+    ASSERT_EQ(recorder.attach(color), openni::STATUS_OK);
+    ASSERT_EQ(recorder.start(), openni::STATUS_OK);
+    ASSERT_EQ(color.start(), openni::STATUS_OK);
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    recorder.stop();
+    color.stop();
+    recorder.destroy();
+    color.destroy();
+    device.close();
+  }
+  const ProcessResult r = runProcess({OBJSCAN_EXE, "info", oni.string()});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("has no depth stream"), std::string::npos) << r.err;
+}
+
+TEST_F(OpenNI, BadDeviceAndOutputAreClearErrors) {
+  const ProcessResult no_folder =
+      record("virtual:" + (out_.path() / "nope").string(), out_.path() / "x.oni");
+  EXPECT_EQ(no_folder.exit_code, 2);
+  EXPECT_EQ(objscan::testing::lines(no_folder.err).size(), 1u) << no_folder.err;
+  EXPECT_NE(no_folder.err.find("nope"), std::string::npos) << no_folder.err;
+
+  const ProcessResult no_out_dir =
+      record("virtual:" + folder().string(), out_.path() / "missing" / "x.oni");
+  EXPECT_EQ(no_out_dir.exit_code, 1);
+  EXPECT_NE(no_out_dir.err.find("does not exist"), std::string::npos) << no_out_dir.err;
+
+  const ProcessResult bad_option =
+      record("virtual:" + folder().string() + "?fps=zero", out_.path() / "x.oni");
+  EXPECT_EQ(bad_option.exit_code, 2);
+  EXPECT_NE(bad_option.err.find("fps"), std::string::npos) << bad_option.err;
+  EXPECT_EQ(objscan::testing::entryCount(out_.path()), 0u);
+}
+
+}  // namespace
+}  // namespace objscan::capture
