@@ -390,6 +390,7 @@ class OniWalker {
       pos += total;
       if (h.type == kEnd) {
         end_seen_ = true;
+        summary_.records_end = pos;
         break;  // the recorder truncates the file after its end record; the player stops there
       }
     }

@@ -48,38 +48,37 @@ class FrameCounter {
   FrameCounter(openni::Recorder& recorder, bool has_color, std::optional<std::size_t> limit)
       : recorder_(recorder), has_color_(has_color), limit_(limit) {}
 
+  // OpenNI2 raises new-frame callbacks asynchronously and coalesces them (a callback reads the
+  // latest frame), so frames are counted from the sensor's frame numbers, not from callbacks.
   void onFrame(const openni::VideoFrameRef& ref) {
     std::lock_guard<std::mutex> lock(mutex_);
     if (limit_reached_) return;
+    const int index = ref.getFrameIndex();
     if (ref.getSensorType() == openni::SENSOR_DEPTH) {
-      const int index = ref.getFrameIndex();
-      if (depth_frames_ > 0 && index > last_depth_index_ + 1) {
-        dropped_ += static_cast<std::size_t>(index - last_depth_index_ - 1);
+      if (depth_frames_ == 0) {
+        first_depth_index_ = index;
+        first_frame_ = Clock::now();
       }
-      last_depth_index_ = index;
-      ++depth_frames_;
-      const auto now = Clock::now();
-      if (depth_frames_ == 1) first_frame_ = now;
-      last_frame_ = now;
+      depth_frames_ = static_cast<std::size_t>(std::max(index - first_depth_index_ + 1, 1));
+      last_frame_ = Clock::now();
     } else {
-      ++color_frames_;
+      if (color_frames_ == 0) first_color_index_ = index;
+      color_frames_ = static_cast<std::size_t>(std::max(index - first_color_index_ + 1, 1));
     }
     if (limit_ && depth_frames_ >= *limit_ && (!has_color_ || color_frames_ >= *limit_)) {
-      // Runs on the sensor's thread before it raises the next frame: nothing past the limit
-      // reaches the recorder.
       recorder_.stop();
       limit_reached_ = true;
     }
   }
 
   struct Snapshot {
-    std::size_t depth_frames, color_frames, dropped;
+    std::size_t depth_frames, color_frames;  ///< frames the sensor numbered since recording began
     bool limit_reached;
     Clock::time_point first_frame, last_frame;
   };
   Snapshot snapshot() {
     std::lock_guard<std::mutex> lock(mutex_);
-    return {depth_frames_, color_frames_, dropped_, limit_reached_, first_frame_, last_frame_};
+    return {depth_frames_, color_frames_, limit_reached_, first_frame_, last_frame_};
   }
 
  private:
@@ -89,8 +88,8 @@ class FrameCounter {
   std::mutex mutex_;
   std::size_t depth_frames_ = 0;
   std::size_t color_frames_ = 0;
-  std::size_t dropped_ = 0;
-  int last_depth_index_ = 0;
+  int first_depth_index_ = 0;
+  int first_color_index_ = 0;
   bool limit_reached_ = false;
   Clock::time_point first_frame_{};
   Clock::time_point last_frame_{};
@@ -276,14 +275,21 @@ RecordSummary recordSession(const RecordOptions& options, const std::atomic<bool
   device.close();
 
   const FrameCounter::Snapshot s = counter.snapshot();
-  summary.dropped = s.dropped;
   summary.duration_s =
       s.depth_frames > 1 ? std::chrono::duration<double>(s.last_frame - s.first_frame).count() : 0;
-  const OniFileSummary written = inspectOniFile(temp);
+  OniFileSummary written = inspectOniFile(temp);
+  if (written.records_end > 0 && written.records_end < written.bytes) {
+    // Drop the zero padding OpenNI2 leaves after the end record: it doubles the file's size.
+    fs::resize_file(temp, written.records_end, ec);
+    if (!ec) written = inspectOniFile(temp);
+  }
   for (const OniStreamSummary& stream : written.streams) {
     if (stream.type == "depth") summary.depth_frames = stream.data_records;
     if (stream.type == "color") summary.color_frames = stream.data_records;
   }
+  // Frames the sensor numbered while recording but that are not in the file.
+  summary.dropped =
+      s.depth_frames > summary.depth_frames ? s.depth_frames - summary.depth_frames : 0;
   if (summary.depth_frames == 0) {
     throw std::runtime_error(summary.stop_reason.empty()
                                  ? std::string("no frame was recorded")

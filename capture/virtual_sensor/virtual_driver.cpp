@@ -46,7 +46,9 @@ using objscan::capture::FrameStatus;
 using objscan::capture::VirtualSensorUri;
 namespace vprop = objscan::capture::virtual_property;
 
-constexpr std::uint16_t kMaxDepthMm = 10000;
+// The recorder sizes its lossless depth codec (16z with tables) from the stream's maximum value and
+// corrupts larger readings, so announce the whole 16-bit range (TUM data reaches 13 m).
+constexpr int kMaxDepthMm = 65535;
 
 void copyString(char* dst, std::size_t capacity, const std::string& src) {
   const std::size_t n = std::min(capacity - 1, src.size());

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "objscan/capture/folder_source.h"
+#include "objscan/capture/oni_container.h"
 #include "objscan/capture/openni.h"
 #include "objscan/core/error.h"
 #include "objscan/core/trajectory.h"
@@ -70,14 +71,17 @@ bool sameImage(const cv::Mat& a, const cv::Mat& b) {
   return a.size() == b.size() && a.type() == b.type() && cv::norm(a, b, cv::NORM_INF) == 0.0;
 }
 
-/// Frames must agree pixel for pixel: depth to the millimetre, colour exactly.
+/// Frames must agree pixel for pixel: depth to the millimetre, colour exactly. With
+/// `last_may_lack_colour`, a stop that fell between the depth and colour frame of the last pair
+/// may leave that frame without colour.
 void expectSameFrames(const std::vector<RgbdFrame>& expected, const std::vector<RgbdFrame>& got,
-                      std::size_t count) {
+                      std::size_t count, bool last_may_lack_colour = false) {
   ASSERT_GE(expected.size(), count);
   ASSERT_EQ(got.size(), count);
   for (std::size_t i = 0; i < count; ++i) {
     SCOPED_TRACE("frame " + std::to_string(i));
     EXPECT_TRUE(sameImage(millimetres(expected[i].depth_m), millimetres(got[i].depth_m)));
+    if (last_may_lack_colour && i + 1 == count && got[i].color_rgb.empty()) continue;
     EXPECT_TRUE(sameImage(expected[i].color_rgb, got[i].color_rgb));
     EXPECT_NEAR(expected[i].stamp_s, got[i].stamp_s, 1e-6);
   }
@@ -140,6 +144,8 @@ TEST_F(OpenNI, RecordThenReplayIsPixelIdenticalForADatasetFolder) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("24 depth, 24 colour"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("dropped       0"), std::string::npos) << r.out;
+  // The zero padding OpenNI2's recorder leaves after the end record is trimmed.
+  EXPECT_EQ(inspectOniFile(oni).records_end, fs::file_size(oni));
 
   {
     auto replay = openOniFile(oni);
@@ -263,7 +269,7 @@ TEST_P(OpenNIStop, SignalStopsCleanlyAndKeepsEveryFrameBeforeIt) {
   EXPECT_LT(got.size(), kFolderFrames);
   EXPECT_NE(r.out.find("frames        " + std::to_string(got.size()) + " depth"), std::string::npos)
       << r.out;
-  expectSameFrames(folderFrames(), got, got.size());
+  expectSameFrames(folderFrames(), got, got.size(), /*last_may_lack_colour=*/true);
 }
 
 INSTANTIATE_TEST_SUITE_P(CtrlCAndTerm, OpenNIStop, ::testing::Values(SIGINT, SIGTERM));
@@ -283,12 +289,13 @@ TEST_F(OpenNI, NearlyFullDiskStopsTheRecordingWithAReplayableFile) {
   const std::vector<RgbdFrame> got = readAll(*replay);
   EXPECT_GE(got.size(), 1u);
   EXPECT_LT(got.size(), kFolderFrames);
-  expectSameFrames(folderFrames(), got, got.size());
+  expectSameFrames(folderFrames(), got, got.size(), /*last_may_lack_colour=*/true);
 }
 
 TEST_F(OpenNI, BadRecordingsAreOneLineErrorsWithExitCode2) {
   const fs::path oni = out_.path() / "good.oni";
-  ASSERT_EQ(record("virtual:" + folder().string(), oni, {}, {"--compress-color"}).exit_code, 0);
+  const ProcessResult made = record("virtual:" + folder().string(), oni, {}, {"--compress-color"});
+  ASSERT_EQ(made.exit_code, 0) << made.err;
   const std::string file = objscan::testing::readBytes(oni);
   // OpenNI2's recorder on Linux leaves zeros after its last record (XnLib's truncate adds the
   // offset twice); cutting those off loses nothing, so cut inside the records.

@@ -35,6 +35,9 @@ struct OniFileSummary {
   /// wrong (problem is empty).
   bool finished = false;
   std::uint64_t bytes = 0;  ///< file size when inspected
+  /// Where the end record ends (0 without one). OpenNI2's recorder on Linux leaves as many zero
+  /// bytes after it (XnLib's truncate adds the offset twice); nothing reads them.
+  std::uint64_t records_end = 0;
   /// The node id of the stream whose frame comes first in the file (none without frames).
   /// Replay starts that stream first: OpenNI2's player drops frames of streams not yet started.
   std::optional<std::uint32_t> first_frame_node;
