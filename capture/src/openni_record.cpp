@@ -217,6 +217,20 @@ RecordSummary recordSession(const RecordOptions& options, const std::atomic<bool
   FrameListener color_listener([&](const openni::VideoFrameRef& f) { counter.onFrame(f); });
   depth.addNewFrameListener(&depth_listener);
   if (has_color) color.addNewFrameListener(&color_listener);
+  // On every way out (errors included), the streams stop and forget the listeners before the
+  // listeners go out of scope. Stopping twice and removing twice are harmless.
+  struct StreamCleanup {
+    openni::VideoStream& depth;
+    openni::VideoStream& color;
+    FrameListener& depth_listener;
+    FrameListener& color_listener;
+    ~StreamCleanup() {
+      depth.removeNewFrameListener(&depth_listener);
+      color.removeNewFrameListener(&color_listener);
+      depth.stop();
+      color.stop();
+    }
+  } stream_cleanup{depth, color, depth_listener, color_listener};
   recorder.start();
   if (!waitForRecorderStart(temp, has_color ? 2 : 1)) {
     log::warning("OpenNI2's recorder took over 5 s to start; the first frames may be missing");
