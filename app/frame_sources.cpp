@@ -2,7 +2,6 @@
 
 #include <filesystem>
 
-#include "objscan/capture/folder_source.h"
 #include "objscan/capture/openni.h"
 #include "objscan/capture/virtual_sensor.h"
 #include "objscan/core/error.h"
@@ -13,13 +12,11 @@ namespace objscan::app {
 std::unique_ptr<capture::FrameSource> openFrameSource(const std::string& spec,
                                                       const SourceOptions& options) {
   namespace fs = std::filesystem;
-  if (spec.rfind("synth:", 0) == 0) {
-    if (options.intrinsics) {
-      return std::make_unique<render::SyntheticSource>(render::parseSynthSpec(spec),
-                                                       *options.intrinsics, options.selection);
-    }
-    return std::make_unique<render::SyntheticSource>(render::parseSynthSpec(spec),
-                                                     Intrinsics::xtionDefault(), options.selection);
+  const fs::path path(spec);
+  std::error_code ec;
+  if (spec.rfind("synth:", 0) == 0 || fs::is_directory(path, ec)) {
+    return render::openSynthOrFolderSource(spec, options.selection, options.intrinsics,
+                                           options.intrinsics_origin);
   }
   const bool live = spec == "live" || spec.rfind("live:", 0) == 0;
   if (live || capture::isVirtualSensorUri(spec)) {
@@ -28,12 +25,6 @@ std::unique_ptr<capture::FrameSource> openFrameSource(const std::string& spec,
     }
     const std::string uri = spec == "live" ? std::string() : live ? spec.substr(5) : spec;
     return capture::openSensor(uri, options.intrinsics, options.intrinsics_origin);
-  }
-  const fs::path path(spec);
-  std::error_code ec;
-  if (fs::is_directory(path, ec)) {
-    return capture::openFolderSource(path, options.selection, options.intrinsics,
-                                     options.intrinsics_origin);
   }
   if (path.extension() == ".oni" || path.extension() == ".ONI") {
     return capture::openOniFile(path, options.selection, options.intrinsics,

@@ -133,15 +133,7 @@ class OniFileSource final : public FrameSource {
     if (fs::exists(sidecars.ground_truth, ec)) {
       info_.ground_truth = readTumTrajectory(sidecars.ground_truth);
     }
-    const openni::VideoMode mode = depth_.getVideoMode();
-    if (mode.getResolutionX() != info_.intrinsics.width_px ||
-        mode.getResolutionY() != info_.intrinsics.height_px) {
-      throw InputError(file, "depth images are " + std::to_string(mode.getResolutionX()) + "x" +
-                                 std::to_string(mode.getResolutionY()) + " but the intrinsics (" +
-                                 info_.intrinsics_origin + ") are for " +
-                                 std::to_string(info_.intrinsics.width_px) + "x" +
-                                 std::to_string(info_.intrinsics.height_px));
-    }
+    requireIntrinsicsFit(depth_, info_, file.string());
     info_.frame_count = selection_.count(depth_total_);
     info_.description = "OpenNI recording " + file.string() + ", " + std::to_string(depth_total_) +
                         " depth and " + std::to_string(color_total_) + " colour frames";

@@ -184,6 +184,17 @@ Intrinsics intrinsicsFromStream(openni::VideoStream& depth, std::string* origin)
   return in;
 }
 
+void requireIntrinsicsFit(openni::VideoStream& depth, const SourceInfo& info,
+                          const std::string& subject) {
+  const openni::VideoMode mode = depth.getVideoMode();
+  const Intrinsics& in = info.intrinsics;
+  if (mode.getResolutionX() == in.width_px && mode.getResolutionY() == in.height_px) return;
+  throw InputError(subject, "depth images are " + std::to_string(mode.getResolutionX()) + "x" +
+                                std::to_string(mode.getResolutionY()) + " but the intrinsics (" +
+                                info.intrinsics_origin + ") are for " +
+                                std::to_string(in.width_px) + "x" + std::to_string(in.height_px));
+}
+
 std::optional<VirtualDeviceFacts> virtualDeviceFacts(openni::Device& device) {
   if (!device.isPropertySupported(virtual_property::kIntrinsics)) return std::nullopt;
   VirtualDeviceFacts facts;

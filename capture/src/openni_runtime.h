@@ -35,6 +35,11 @@ void createLiveStreams(openni::Device& device, openni::VideoStream& depth,
 /// the image centre); the Xtion defaults when the stream reports no usable field of view.
 Intrinsics intrinsicsFromStream(openni::VideoStream& depth, std::string* origin);
 
+/// Throws InputError(subject, "depth images are WxH but the intrinsics (<origin>) are for WxH")
+/// when the depth stream's resolution differs from `info.intrinsics`.
+void requireIntrinsicsFit(openni::VideoStream& depth, const SourceInfo& info,
+                          const std::string& subject);
+
 /// What objscan's virtual sensor says about itself; nullopt for any other device.
 struct VirtualDeviceFacts {
   Intrinsics intrinsics;

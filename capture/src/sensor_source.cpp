@@ -38,15 +38,7 @@ class SensorSource final : public FrameSource {
       info_.intrinsics = *intrinsics_override;
       info_.intrinsics_origin = intrinsics_origin.empty() ? "given" : intrinsics_origin;
     }
-    const openni::VideoMode mode = depth_.getVideoMode();
-    if (mode.getResolutionX() != info_.intrinsics.width_px ||
-        mode.getResolutionY() != info_.intrinsics.height_px) {
-      throw InputError(uri_, "the sensor streams " + std::to_string(mode.getResolutionX()) + "x" +
-                                 std::to_string(mode.getResolutionY()) +
-                                 " depth but the intrinsics (" + info_.intrinsics_origin +
-                                 ") are for " + std::to_string(info_.intrinsics.width_px) + "x" +
-                                 std::to_string(info_.intrinsics.height_px));
-    }
+    requireIntrinsicsFit(depth_, info_, uri_);
     info_.live = true;
     info_.description =
         std::string("sensor ") + device_.getDeviceInfo().getName() + " (" + uri_ + ")";

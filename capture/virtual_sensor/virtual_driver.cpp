@@ -34,7 +34,6 @@
 #include <thread>
 #include <vector>
 
-#include "objscan/capture/folder_source.h"
 #include "objscan/capture/frame_source.h"
 #include "objscan/capture/virtual_sensor.h"
 #include "objscan/render/synthetic_source.h"
@@ -54,15 +53,6 @@ void copyString(char* dst, std::size_t capacity, const std::string& src) {
   const std::size_t n = std::min(capacity - 1, src.size());
   std::memcpy(dst, src.data(), n);
   dst[n] = '\0';
-}
-
-std::unique_ptr<FrameSource> openSource(const std::string& spec) {
-  if (spec.rfind("synth:", 0) == 0) {
-    return std::make_unique<objscan::render::SyntheticSource>(objscan::render::parseSynthSpec(spec),
-                                                              objscan::Intrinsics::xtionDefault(),
-                                                              objscan::capture::FrameSelection{});
-  }
-  return objscan::capture::openFolderSource(spec);
 }
 
 class VirtualDevice;
@@ -92,9 +82,8 @@ class VirtualStream : public oni::driver::StreamBase {
 
 class VirtualDevice : public oni::driver::DeviceBase {
  public:
-  VirtualDevice(const OniDeviceInfo& info, VirtualSensorUri uri,
-                oni::driver::DriverServices& services)
-      : info_(info), uri_(std::move(uri)), services_(services) {}
+  VirtualDevice(VirtualSensorUri uri, oni::driver::DriverServices& services)
+      : uri_(std::move(uri)), services_(services) {}
 
   ~VirtualDevice() override { close(); }
 
@@ -238,7 +227,7 @@ class VirtualDevice : public oni::driver::DeviceBase {
   void run(std::promise<std::string> opened) {
     std::unique_ptr<FrameSource> source;
     try {
-      source = openSource(uri_.source);
+      source = objscan::render::openSynthOrFolderSource(uri_.source);
       const objscan::capture::SourceInfo& info = source->info();
       intrinsics_ = info.intrinsics;
       description_ = info.description;
@@ -358,7 +347,6 @@ class VirtualDevice : public oni::driver::DeviceBase {
     }
   }
 
-  OniDeviceInfo info_;
   VirtualSensorUri uri_;
   oni::driver::DriverServices& services_;
   std::recursive_mutex mutex_;
@@ -544,7 +532,7 @@ class VirtualDriver : public oni::driver::DriverBase {
       return nullptr;
     }
     const OniDeviceInfo info = makeInfo(uri);
-    auto device = std::make_unique<VirtualDevice>(info, parsed, getServices());
+    auto device = std::make_unique<VirtualDevice>(parsed, getServices());
     device->on_unplug = [this, info] { deviceDisconnected(&info); };
     const std::string error = device->open();
     if (!error.empty()) {

@@ -1,5 +1,7 @@
 #include "objscan/render/synthetic_source.h"
 
+#include "objscan/capture/folder_source.h"
+
 #include <algorithm>
 #include <cassert>
 #include <charconv>
@@ -190,6 +192,19 @@ capture::FrameResult SyntheticSource::next() {
   frame.color_rgb = std::move(rendered.view.color_rgb);
   frame.intrinsics = intrinsics_;
   return capture::FrameResult::ok(std::move(frame));
+}
+
+std::unique_ptr<capture::FrameSource> openSynthOrFolderSource(
+    const std::string& spec, const capture::FrameSelection& selection,
+    const std::optional<Intrinsics>& intrinsics, const std::string& intrinsics_origin) {
+  if (spec.rfind("synth:", 0) != 0) {
+    return capture::openFolderSource(spec, selection, intrinsics, intrinsics_origin);
+  }
+  const SynthSpec synth = parseSynthSpec(spec);
+  if (!intrinsics)
+    return std::make_unique<SyntheticSource>(synth, Intrinsics::xtionDefault(), selection);
+  return std::make_unique<SyntheticSource>(synth, *intrinsics, selection,
+                                           intrinsics_origin.empty() ? "given" : intrinsics_origin);
 }
 
 }  // namespace objscan::render

@@ -14,14 +14,9 @@ namespace {
 
 namespace fs = std::filesystem;
 using objscan::testing::expectInputError;
+using objscan::testing::sevenScenesFrameName;
 using objscan::testing::TempDir;
 using objscan::testing::writeBytes;
-
-std::string frameName(int number, const std::string& suffix) {
-  char name[64];
-  std::snprintf(name, sizeof name, "frame-%06d.%s", number, suffix.c_str());
-  return name;
-}
 
 /// Depth of frame k at (u, v), millimetres (or TUM raw units with depth factor 1000).
 std::uint16_t depthMm(int k, int u, int v) {
@@ -43,9 +38,9 @@ cv::Mat colourImage(int k) { return cv::Mat(3, 4, CV_8UC3, cv::Scalar(0, k, 255)
 void makeSevenScenes(const fs::path& dir, int n) {
   fs::create_directories(dir);
   for (int k = 0; k < n; ++k) {
-    cv::imwrite((dir / frameName(k, "depth.png")).string(), depthImage(k));
-    cv::imwrite((dir / frameName(k, "color.png")).string(), colourImage(k));
-    writeBytes(dir / frameName(k, "pose.txt"),
+    cv::imwrite((dir / sevenScenesFrameName(k, "depth.png")).string(), depthImage(k));
+    cv::imwrite((dir / sevenScenesFrameName(k, "color.png")).string(), colourImage(k));
+    writeBytes(dir / sevenScenesFrameName(k, "pose.txt"),
                "1 0 0 " + std::to_string(k) + "\n0 1 0 0\n0 0 1 0\n0 0 0 1\n");
   }
   writeBytes(dir / "camera-intrinsics.txt", "5 0 1.5\n0 5 1\n0 0 1\n");
@@ -160,9 +155,9 @@ TEST(FolderSource, SelectionKeepsFolderIndices) {
 TEST(FolderSource, BadFramesAreReportedAndSkipped) {
   TempDir dir;
   makeSevenScenes(dir.path(), 5);
-  const fs::path depth1 = dir / frameName(1, "depth.png");
-  const fs::path colour2 = dir / frameName(2, "color.png");
-  const fs::path depth3 = dir / frameName(3, "depth.png");
+  const fs::path depth1 = dir / sevenScenesFrameName(1, "depth.png");
+  const fs::path colour2 = dir / sevenScenesFrameName(2, "color.png");
+  const fs::path depth3 = dir / sevenScenesFrameName(3, "depth.png");
   const std::string png = testing::readBytes(depth1);
   writeBytes(depth1, png.substr(0, png.size() / 2));  // truncated
   cv::imwrite(colour2.string(), cv::Mat(6, 8, CV_8UC3, cv::Scalar(0, 0, 255)));
@@ -232,10 +227,10 @@ TEST(FolderSource, IntrinsicsOverrideReplacesTheFolders) {
   wrong.width_px = 8;
   wrong.height_px = 6;
   expectInputError([&] { openFolderSource(dir.path(), {}, wrong, "calib.json"); },
-                   dir / frameName(0, "depth.png"),
+                   dir / sevenScenesFrameName(0, "depth.png"),
                    "image is 4x3 but the intrinsics from calib.json are for 8x6");
-  cv::imwrite((dir / frameName(1, "depth.png")).string(), cv::Mat(6, 8, CV_16UC1));
-  cv::imwrite((dir / frameName(1, "color.png")).string(), cv::Mat(6, 8, CV_8UC3));
+  cv::imwrite((dir / sevenScenesFrameName(1, "depth.png")).string(), cv::Mat(6, 8, CV_16UC1));
+  cv::imwrite((dir / sevenScenesFrameName(1, "color.png")).string(), cv::Mat(6, 8, CV_8UC3));
   {
     const auto source = openFolderSource(dir.path(), {1, std::nullopt, 1}, wrong, "calib.json");
     const FrameResult r1 = source->next();
@@ -243,7 +238,7 @@ TEST(FolderSource, IntrinsicsOverrideReplacesTheFolders) {
     EXPECT_EQ(r1.frame.intrinsics, wrong);
     const FrameResult r2 = source->next();
     ASSERT_EQ(r2.status, FrameStatus::kBadFrame);
-    EXPECT_NE(r2.reason.find("frame 2: " + (dir / frameName(2, "depth.png")).string() +
+    EXPECT_NE(r2.reason.find("frame 2: " + (dir / sevenScenesFrameName(2, "depth.png")).string() +
                              ": image is 4x3 but the intrinsics are for 8x6"),
               std::string::npos)
         << r2.reason;

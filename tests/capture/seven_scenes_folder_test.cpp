@@ -13,14 +13,9 @@ namespace {
 
 namespace fs = std::filesystem;
 using objscan::testing::expectInputError;
+using objscan::testing::sevenScenesFrameName;
 using objscan::testing::TempDir;
 using objscan::testing::writeBytes;
-
-std::string frameName(int number, const std::string& suffix) {
-  char name[64];
-  std::snprintf(name, sizeof name, "frame-%06d.%s", number, suffix.c_str());
-  return name;
-}
 
 /// The pose written for the k-th frame: a rotation of 0.1 k rad about (1, 2, 3), translation
 /// (k, -2k, 0.5k) metres.
@@ -61,9 +56,10 @@ void makeFolder(const fs::path& dir, const std::vector<int>& numbers, bool intri
     depth.at<std::uint16_t>(0, 0) = 0;
     depth.at<std::uint16_t>(0, 1) = 65535;
     bgr.at<cv::Vec3b>(1, 1) = cv::Vec3b(0, 0, 255);  // pure red
-    cv::imwrite((dir / frameName(numbers[k], "depth.png")).string(), depth);
-    cv::imwrite((dir / frameName(numbers[k], "color.png")).string(), bgr);
-    writeBytes(dir / frameName(numbers[k], "pose.txt"), matrixText(poseOf(static_cast<int>(k))));
+    cv::imwrite((dir / sevenScenesFrameName(numbers[k], "depth.png")).string(), depth);
+    cv::imwrite((dir / sevenScenesFrameName(numbers[k], "color.png")).string(), bgr);
+    writeBytes(dir / sevenScenesFrameName(numbers[k], "pose.txt"),
+               matrixText(poseOf(static_cast<int>(k))));
   }
   if (intrinsics) {
     Eigen::Matrix3d K;

@@ -12,6 +12,7 @@
 #include <gtest/gtest.h>
 
 #include <csignal>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <random>
@@ -198,6 +199,12 @@ ProcessResult runProcess(const std::vector<std::string>& argv, const ProcessOpti
   ::waitpid(pid, &status, 0);
   result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
   return result;
+}
+
+std::string sevenScenesFrameName(int number, const std::string& suffix) {
+  char name[64];
+  std::snprintf(name, sizeof name, "frame-%06d.%s", number, suffix.c_str());
+  return name;
 }
 
 std::vector<std::string> lines(const std::string& text) {

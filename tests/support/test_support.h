@@ -80,6 +80,9 @@ struct ProcessOptions {
 };
 ProcessResult runProcess(const std::vector<std::string>& argv, const ProcessOptions& options);
 
+/// A 7-Scenes / 3DMatch file name: sevenScenesFrameName(7, "depth.png") = "frame-000007.depth.png".
+std::string sevenScenesFrameName(int number, const std::string& suffix);
+
 /// Lines of `text` without their '\n' (a final line without '\n' counts too).
 std::vector<std::string> lines(const std::string& text);
 

@@ -3,6 +3,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "objscan/capture/frame_source.h"
@@ -71,5 +72,13 @@ class SyntheticSource : public capture::FrameSource {
   std::size_t next_index_ = 0;  ///< position in the path of the next frame to consider
   std::unique_ptr<OffscreenRenderer> renderer_;
 };
+
+/// Opens a source that needs no OpenNI2: `synth:<seed>[,...]` (a SyntheticSource; the Xtion
+/// camera unless `intrinsics` is given) or a dataset folder (capture::openFolderSource). Shared by
+/// the command line and the virtual OpenNI2 sensor. Throws as those two do.
+std::unique_ptr<capture::FrameSource> openSynthOrFolderSource(
+    const std::string& spec, const capture::FrameSelection& selection = {},
+    const std::optional<Intrinsics>& intrinsics = std::nullopt,
+    const std::string& intrinsics_origin = {});
 
 }  // namespace objscan::render
