@@ -7,6 +7,7 @@
 
 #include <OpenNI.h>
 
+#include <chrono>
 #include <deque>
 #include <filesystem>
 #include <memory>
@@ -15,6 +16,7 @@
 #include <set>
 #include <stdexcept>
 #include <string>
+#include <thread>
 
 #include "objscan/capture/oni_container.h"
 #include "objscan/capture/openni.h"
@@ -219,14 +221,16 @@ class OniFileSource final : public FrameSource {
   }
 
   void close() {
-    if (depth_.isValid()) {
-      depth_.stop();
-      depth_.destroy();
-    }
-    if (color_.isValid()) {
-      color_.stop();
-      color_.destroy();
-    }
+    // Debian's file player walks its stream list without its lock at the top of every loop, and
+    // with a started stream at the end of the file it loops without pause. Destroying a stream
+    // then races that walk and crashed about one replay in five. With every stream stopped the
+    // loop walks the list once per 10 ms sleep, so stop all streams, let it reach that sleep,
+    // and only then destroy them.
+    depth_.stop();
+    color_.stop();
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    depth_.destroy();
+    color_.destroy();
     if (device_.isValid()) device_.close();
   }
 
