@@ -223,10 +223,18 @@ cv::Mat depthToMetres(const openni::VideoFrameRef& frame) {
   const cv::Mat raw(frame.getHeight(), frame.getWidth(), CV_16UC1,
                     const_cast<void*>(frame.getData()),
                     static_cast<std::size_t>(frame.getStrideInBytes()));
-  const double scale =
-      frame.getVideoMode().getPixelFormat() == openni::PIXEL_FORMAT_DEPTH_100_UM ? 1e-4 : 1e-3;
-  cv::Mat metres;
-  raw.convertTo(metres, CV_32FC1, scale);
+  const float units_per_metre =
+      frame.getVideoMode().getPixelFormat() == openni::PIXEL_FORMAT_DEPTH_100_UM ? 10000.0f
+                                                                                 : 1000.0f;
+  // Division, as the folder readers do: the float nearest mm / 1000, so that a replayed frame is
+  // bit-identical to the dataset frame it was recorded from (convertTo multiplies by a float
+  // 0.001, which is one unit in the last place off for most values).
+  cv::Mat metres(raw.size(), CV_32FC1);
+  for (int v = 0; v < raw.rows; ++v) {
+    const std::uint16_t* in = raw.ptr<std::uint16_t>(v);
+    float* out = metres.ptr<float>(v);
+    for (int u = 0; u < raw.cols; ++u) out[u] = static_cast<float>(in[u]) / units_per_metre;
+  }
   return metres;
 }
 

@@ -6,8 +6,10 @@
 
 #include <chrono>
 #include <csignal>
+#include <cstring>
 #include <filesystem>
 #include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <string>
 #include <thread>
 #include <vector>
@@ -174,6 +176,44 @@ TEST_F(OpenNI, RecordThenReplayIsPixelIdenticalForASynthSpec) {
   auto replay = openOniFile(oni);
   EXPECT_EQ(replay->info().intrinsics.width_px, 640);
   expectSameFrames(readAll(direct), readAll(*replay), 6);
+}
+
+// 7-Scenes depth is whole millimetres, as OpenNI2 carries it, so a replayed frame equals the
+// folder's frame bit for bit: the same float metres, not just the same millimetres.
+TEST_F(OpenNI, ReplayOfAMillimetreFolderIsBitIdentical) {
+  const fs::path dir = out_.path() / "seven_scenes";
+  fs::create_directories(dir);
+  cv::RNG rng(7);
+  for (int k = 0; k < 3; ++k) {
+    cv::Mat depth(120, 160, CV_16UC1), colour(120, 160, CV_8UC3);
+    rng.fill(depth, cv::RNG::UNIFORM, 1, 12000);
+    depth.at<std::uint16_t>(k, 0) = 65535;  // 7-Scenes' "no reading"
+    rng.fill(colour, cv::RNG::UNIFORM, 0, 256);
+    cv::imwrite((dir / objscan::testing::sevenScenesFrameName(k, "depth.png")).string(), depth);
+    cv::imwrite((dir / objscan::testing::sevenScenesFrameName(k, "color.png")).string(), colour);
+    objscan::testing::writeBytes(dir / objscan::testing::sevenScenesFrameName(k, "pose.txt"),
+                                 "1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n");
+  }
+  objscan::testing::writeBytes(dir / "camera-intrinsics.txt",
+                               "142.6 0 79.5\n0 142.6 59.5\n0 0 1\n");
+  const fs::path oni = out_.path() / "seven_scenes.oni";
+  const ProcessResult r = record("virtual:" + dir.string(), oni);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  auto folder_source = openFolderSource(dir);
+  const std::vector<RgbdFrame> expected = readAll(*folder_source);
+  auto replay = openOniFile(oni);
+  const std::vector<RgbdFrame> got = readAll(*replay);
+  ASSERT_EQ(got.size(), 3u);
+  ASSERT_EQ(expected.size(), 3u);
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    SCOPED_TRACE("frame " + std::to_string(i));
+    ASSERT_EQ(got[i].depth_m.size(), expected[i].depth_m.size());
+    EXPECT_EQ(got[i].depth_m.at<float>(static_cast<int>(i), 0), 0.0f);
+    EXPECT_EQ(std::memcmp(got[i].depth_m.data, expected[i].depth_m.data,
+                          got[i].depth_m.total() * sizeof(float)),
+              0);
+    EXPECT_TRUE(sameImage(expected[i].color_rgb, got[i].color_rgb));
+  }
 }
 
 TEST_F(OpenNI, ReplaySelectionKeepsRecordingIndices) {
