@@ -2,12 +2,15 @@
 // (README, "Exit codes"). Nothing else lives here.
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cstdio>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "exit_codes.h"
+#include "fuse_command.h"
 #include "info_command.h"
 #include "objscan/core/error.h"
 #include "objscan/core/log.h"
@@ -28,7 +31,6 @@ struct Planned {
 };
 
 constexpr Planned kPlanned[] = {
-    {"fuse", "Fuse a recording into DIR/mesh.ply and DIR/trajectory.txt (TSDF + ICP)", "Step D"},
     {"discover", "Segment meshes, measure and rank object hypotheses into DIR", "Step E"},
     {"render", "Render snapshots of the top hypotheses in DIR into DIR/renders/", "Step F"},
     {"scan", "Capture (or replay) to ranked objects in one go: fuse, discover, render", "Step F"},
@@ -117,6 +119,37 @@ int run(int argc, char** argv) {
                      "intrinsics.json stored with the recording (X.oni.json) instead of what the "
                      "sensor reports; replay uses it");
 
+  FuseCommandOptions fuse_options;
+  std::optional<float> truncation_m;
+  CLI::App* fuse = app.add_subcommand(
+      "fuse", "Fuse a recording into DIR/mesh.ply and DIR/trajectory.txt (TSDF + ICP tracking)");
+  fuse->add_option("source", fuse_options.source,
+                   "X.oni, a TUM or 7-Scenes folder, synth:<seed>, live[:uri] or virtual:<source>")
+      ->required();
+  fuse->add_option("--out", fuse_options.out, "Folder for mesh.ply and trajectory.txt")->required();
+  fuse->add_option("--voxel-size", fuse_options.config.volume.voxel_size_m,
+                   "Voxel edge in metres (default: 3 m / 512, the paper's density)")
+      ->capture_default_str();
+  fuse->add_option("--truncation", truncation_m,
+                   "Truncation distance in metres (default: 0.03, or 3 voxels if larger)");
+  fuse->add_option("--min-depth", fuse_options.config.preprocess.min_depth_m,
+                   "Ignore depth nearer than this (m)")
+      ->capture_default_str();
+  fuse->add_option("--max-depth", fuse_options.config.preprocess.max_depth_m,
+                   "Ignore depth farther than this (m)")
+      ->capture_default_str();
+  fuse->add_option("--poses", fuse_options.poses,
+                   "Integrate at given poses instead of tracking: a TUM trajectory file, or "
+                   "'groundtruth' for the source's own");
+  fuse->add_option("--start", fuse_options.start, "First frame (0-based)")
+      ->check(CLI::NonNegativeNumber);
+  fuse->add_option("--end", fuse_options.end, "Stop before this frame")->check(CLI::PositiveNumber);
+  fuse->add_option("--every", fuse_options.every, "Use every n-th frame")
+      ->check(CLI::PositiveNumber);
+  fuse->add_option("--intrinsics", fuse_options.intrinsics,
+                   "intrinsics.json (fx, fy, cx, cy, width, height) replacing the source's");
+  fuse->add_flag("--no-color", fuse_options.no_color, "Fuse depth only (mesh without colours)");
+
   std::vector<std::pair<CLI::App*, const Planned*>> planned;
   for (const Planned& p : kPlanned) {
     CLI::App* sub =
@@ -160,6 +193,11 @@ int run(int argc, char** argv) {
   if (info->parsed()) runInfo(info_path);
   if (devices->parsed()) runDevices();
   if (record->parsed()) return runRecord(record_options);
+  if (fuse->parsed()) {
+    auto& volume = fuse_options.config.volume;
+    volume.truncation_m = truncation_m.value_or(std::max(0.03f, 3.0f * volume.voxel_size_m));
+    return runFuse(fuse_options);
+  }
   if (synth->parsed()) runSynth(synth_options);
   return kExitSuccess;
 }

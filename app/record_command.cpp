@@ -1,7 +1,5 @@
 #include "record_command.h"
 
-#include <atomic>
-#include <csignal>
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -13,38 +11,9 @@
 #include "objscan/core/intrinsics.h"
 #include "objscan/core/log.h"
 #include "objscan/core/trajectory.h"
+#include "stop_signals.h"
 
 namespace objscan::app {
-namespace {
-
-std::atomic<bool> g_stop{false};
-
-extern "C" void onStopSignal(int) { g_stop.store(true); }
-
-/// Ctrl-C and SIGTERM set g_stop while recording; the previous handlers come back afterwards.
-class StopSignals {
- public:
-  StopSignals() {
-    g_stop.store(false);
-    struct sigaction action {};
-    action.sa_handler = onStopSignal;
-    sigemptyset(&action.sa_mask);
-    sigaction(SIGINT, &action, &old_int_);
-    sigaction(SIGTERM, &action, &old_term_);
-  }
-  ~StopSignals() {
-    sigaction(SIGINT, &old_int_, nullptr);
-    sigaction(SIGTERM, &old_term_, nullptr);
-  }
-  StopSignals(const StopSignals&) = delete;
-  StopSignals& operator=(const StopSignals&) = delete;
-
- private:
-  struct sigaction old_int_ {};
-  struct sigaction old_term_ {};
-};
-
-}  // namespace
 
 void runDevices() {
   const std::vector<capture::SensorDescription> sensors = capture::listSensors();
@@ -82,19 +51,20 @@ int runRecord(const RecordCommandOptions& options) {
     StopSignals signals;
     double last_report = 0.0;
     bool announced = false;
-    summary = capture::recordSession(record, g_stop, [&](std::size_t frames, double seconds) {
-      if (!announced) {  // the first call comes once the sensor streams
-        announced = true;
-        log::info("recording " +
-                  (options.device.empty() ? std::string("the first sensor") : options.device) +
-                  " to " + options.out.string() + " (Ctrl-C stops)");
-      }
-      if (seconds - last_report >= 5.0) {
-        last_report = seconds;
-        log::info("recording: " + std::to_string(frames) + " frames, " +
-                  std::to_string(static_cast<int>(seconds)) + " s");
-      }
-    });
+    summary = capture::recordSession(
+        record, StopSignals::flag(), [&](std::size_t frames, double seconds) {
+          if (!announced) {  // the first call comes once the sensor streams
+            announced = true;
+            log::info("recording " +
+                      (options.device.empty() ? std::string("the first sensor") : options.device) +
+                      " to " + options.out.string() + " (Ctrl-C stops)");
+          }
+          if (seconds - last_report >= 5.0) {
+            last_report = seconds;
+            log::info("recording: " + std::to_string(frames) + " frames, " +
+                      std::to_string(static_cast<int>(seconds)) + " s");
+          }
+        });
   }
   if (ground_truth && !ground_truth->poses.empty()) {
     summary.ground_truth_file = capture::RecordingSidecars::of(options.out).ground_truth;

@@ -1,11 +1,14 @@
 #include "objscan/core/trajectory.h"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
 #include <string>
 #include <string_view>
+
+#include <Eigen/Geometry>
 
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/error.h"
@@ -138,6 +141,75 @@ void writeTumTrajectory(const std::filesystem::path& path, const Trajectory& tra
     out += '\n';
   }
   writeFileAtomically(path, out);
+}
+
+std::optional<Pose> nearestPose(const Trajectory& trajectory, double stamp_s, double max_dt_s) {
+  const auto it = std::lower_bound(trajectory.poses.begin(), trajectory.poses.end(), stamp_s,
+                                   [](const StampedPose& p, double s) { return p.stamp_s < s; });
+  const StampedPose* best = nullptr;
+  if (it != trajectory.poses.end()) best = &*it;
+  if (it != trajectory.poses.begin()) {
+    const StampedPose& before = *(it - 1);
+    if (!best || stamp_s - before.stamp_s < best->stamp_s - stamp_s) best = &before;
+  }
+  if (!best || std::abs(best->stamp_s - stamp_s) > max_dt_s) return std::nullopt;
+  return best->T_W_C;
+}
+
+TrajectoryError absoluteTrajectoryError(const Trajectory& estimate, const Trajectory& truth,
+                                        double max_dt_s) {
+  // Candidate pairs: each estimated pose with the nearest true poses on either side in time.
+  struct Pair {
+    double dt;
+    std::size_t e, t;
+  };
+  std::vector<Pair> candidates;
+  for (std::size_t e = 0; e < estimate.size(); ++e) {
+    const double stamp = estimate.poses[e].stamp_s;
+    const auto it = std::lower_bound(truth.poses.begin(), truth.poses.end(), stamp,
+                                     [](const StampedPose& p, double s) { return p.stamp_s < s; });
+    const auto at = static_cast<std::size_t>(it - truth.poses.begin());
+    for (std::size_t t : {at, at - 1}) {
+      if (t >= truth.size()) continue;  // also catches at - 1 wrapping below 0
+      const double dt = std::abs(truth.poses[t].stamp_s - stamp);
+      if (dt <= max_dt_s) candidates.push_back({dt, e, t});
+    }
+  }
+  std::sort(candidates.begin(), candidates.end(),
+            [](const Pair& a, const Pair& b) { return a.dt < b.dt; });
+  std::vector<bool> estimate_used(estimate.size()), truth_used(truth.size());
+  std::vector<Eigen::Vector3d> from, to;
+  for (const Pair& p : candidates) {
+    if (estimate_used[p.e] || truth_used[p.t]) continue;
+    estimate_used[p.e] = truth_used[p.t] = true;
+    from.push_back(estimate.poses[p.e].T_W_C.translation().cast<double>());
+    to.push_back(truth.poses[p.t].T_W_C.translation().cast<double>());
+  }
+  if (from.size() < 3) {
+    throw std::invalid_argument("only " + std::to_string(from.size()) +
+                                " poses pair up in time with the ground truth (3 needed)");
+  }
+  Eigen::Matrix3Xd src(3, static_cast<Eigen::Index>(from.size())), dst(3, src.cols());
+  for (std::size_t i = 0; i < from.size(); ++i) {
+    src.col(static_cast<Eigen::Index>(i)) = from[i];
+    dst.col(static_cast<Eigen::Index>(i)) = to[i];
+  }
+  const Eigen::Matrix4d T = Eigen::umeyama(src, dst, false);
+  TrajectoryError error;
+  error.matched = from.size();
+  error.T_truth_estimate.matrix() = T.cast<float>();
+  double sum_sq = 0.0, sum = 0.0;
+  for (Eigen::Index i = 0; i < src.cols(); ++i) {
+    const double d =
+        (T.topLeftCorner<3, 3>() * src.col(i) + T.topRightCorner<3, 1>() - dst.col(i)).norm();
+    sum_sq += d * d;
+    sum += d;
+    error.max_m = std::max(error.max_m, d);
+  }
+  const double n = static_cast<double>(src.cols());
+  error.rmse_m = std::sqrt(sum_sq / n);
+  error.mean_m = sum / n;
+  return error;
 }
 
 }  // namespace objscan

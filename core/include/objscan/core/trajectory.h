@@ -1,7 +1,9 @@
 #pragma once
 
 #include <array>
+#include <cstddef>
 #include <filesystem>
+#include <optional>
 #include <vector>
 
 #include "objscan/core/pose.h"
@@ -42,5 +44,24 @@ Trajectory readTumTrajectory(const std::filesystem::path& path);
 /// Writes the TUM format (time stamps with microsecond precision, the rest exact), atomically.
 /// Throws OutputError.
 void writeTumTrajectory(const std::filesystem::path& path, const Trajectory& trajectory);
+
+/// The pose nearest in time to stamp_s, if one lies within max_dt_s (poses in time order).
+std::optional<Pose> nearestPose(const Trajectory& trajectory, double stamp_s, double max_dt_s);
+
+/// Absolute trajectory error, as the TUM benchmark's evaluate_ate.py computes it.
+struct TrajectoryError {
+  std::size_t matched = 0;  ///< estimated poses paired with a ground-truth pose
+  double rmse_m = 0.0;      ///< RMS of the position differences after alignment
+  double mean_m = 0.0;
+  double max_m = 0.0;
+  Pose T_truth_estimate = Pose::Identity();  ///< the aligning rigid motion
+};
+
+/// Pairs each estimated pose with the ground-truth pose nearest in time (within max_dt_s, each
+/// used once, closest pairs first), aligns the estimated positions to the true ones with the
+/// least-squares rigid motion (Horn's method, no scale), and measures what differs. Throws
+/// std::invalid_argument when fewer than 3 poses pair up.
+TrajectoryError absoluteTrajectoryError(const Trajectory& estimate, const Trajectory& truth,
+                                        double max_dt_s = 0.02);
 
 }  // namespace objscan

@@ -1,0 +1,28 @@
+#include "stop_signals.h"
+
+namespace objscan::app {
+namespace {
+
+std::atomic<bool> g_stop{false};
+
+extern "C" void onStopSignal(int) { g_stop.store(true); }
+
+}  // namespace
+
+StopSignals::StopSignals() {
+  g_stop.store(false);
+  struct sigaction action {};
+  action.sa_handler = onStopSignal;
+  sigemptyset(&action.sa_mask);
+  sigaction(SIGINT, &action, &old_int_);
+  sigaction(SIGTERM, &action, &old_term_);
+}
+
+StopSignals::~StopSignals() {
+  sigaction(SIGINT, &old_int_, nullptr);
+  sigaction(SIGTERM, &old_term_, nullptr);
+}
+
+const std::atomic<bool>& StopSignals::flag() { return g_stop; }
+
+}  // namespace objscan::app

@@ -1,0 +1,27 @@
+#pragma once
+
+#include <atomic>
+#include <csignal>
+
+namespace objscan::app {
+
+/// While alive, Ctrl-C (SIGINT) and SIGTERM set stopRequested() instead of killing the process, so
+/// a long command can finish what it has and write valid outputs; the previous handlers come back
+/// when it goes.
+class StopSignals {
+ public:
+  StopSignals();
+  ~StopSignals();
+  StopSignals(const StopSignals&) = delete;
+  StopSignals& operator=(const StopSignals&) = delete;
+
+  /// Set by the handler; an atomic that library calls (capture::recordSession) can poll.
+  static const std::atomic<bool>& flag();
+  static bool stopRequested() { return flag().load(); }
+
+ private:
+  struct sigaction old_int_ {};
+  struct sigaction old_term_ {};
+};
+
+}  // namespace objscan::app

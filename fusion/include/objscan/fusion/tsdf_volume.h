@@ -1,0 +1,89 @@
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <optional>
+
+#include <Eigen/Core>
+#include <opencv2/core/mat.hpp>
+
+#include "objscan/core/intrinsics.h"
+#include "objscan/core/pose.h"
+
+/// A sparse truncated signed distance volume (Curless and Levoy 1996, as KinectFusion uses it):
+/// voxels in blocks of 8x8x8, found through a hash map of block coordinates and allocated only
+/// within the truncation band of observed surfaces, so memory grows with the surface seen, not
+/// with the bounding box (the voxel hashing of Niessner et al. 2013).
+namespace objscan::fusion {
+
+struct VolumeConfig {
+  /// Edge of a voxel. The paper's meshes came from KinectFusion's 3 m / 512 voxels; the same
+  /// density keeps its size constants (m_size = 500 vertices) meaningful.
+  float voxel_size_m = 3.0f / 512.0f;
+  /// Signed distances are truncated to +-this. 3 cm (KinectFusion's default) covers about three
+  /// standard deviations of an Xtion's depth noise at 2 m; it must span at least 2 voxels.
+  float truncation_m = 0.03f;
+  /// A voxel's weight stops growing here, so the running average keeps adapting (KinectFusion
+  /// caps it at 128 frames).
+  float max_weight = 128.0f;
+  /// Block allocation looks at every n-th pixel in both directions: at 3 m a pixel covers 5 mm, so
+  /// 4 pixels stay well under a block's 4.7 cm and no block in the band is missed.
+  int allocation_stride_px = 4;
+  /// Throws std::invalid_argument with a sentence naming the bad field.
+  void validate() const;
+};
+
+/// One voxel: truncated signed distance in units of the truncation distance (-1 .. 1, positive in
+/// front of the surface), its weight (0 = never observed), and a colour averaged over the
+/// observations within the truncation band (color_weight of them, capped at 255).
+struct Voxel {
+  float tsdf = 1.0f;
+  float weight = 0.0f;
+  std::uint8_t r = 0, g = 0, b = 0;
+  std::uint8_t color_weight = 0;
+};
+
+/// Voxels along a block's edge.
+inline constexpr int kBlockSide = 8;
+inline constexpr int kBlockVoxels = kBlockSide * kBlockSide * kBlockSide;
+
+/// The volume. Voxel (i, j, k) of the global grid sits at (i, j, k) * voxel_size_m in the world
+/// frame W. Not thread-safe for writing; const methods may run concurrently.
+class TsdfVolume {
+ public:
+  explicit TsdfVolume(const VolumeConfig& config);
+  ~TsdfVolume();
+  TsdfVolume(TsdfVolume&&) noexcept;
+  TsdfVolume& operator=(TsdfVolume&&) noexcept;
+
+  /// Integrates a depth image (CV_32FC1 metres, 0 = no reading; clip it first) with its colour
+  /// (CV_8UC3 RGB of the same size, or empty) seen from T_W_C: allocates the blocks within the
+  /// truncation band of the readings, then updates every voxel of those blocks that projects onto
+  /// a reading and lies no deeper than the truncation behind it. The signed distance is measured
+  /// along the optical axis (reading minus voxel depth), as KinectFusion does. Returns the number
+  /// of blocks updated.
+  std::size_t integrate(const cv::Mat& depth_m, const cv::Mat& color_rgb,
+                        const Intrinsics& intrinsics, const Pose& T_W_C);
+
+  /// Signed distance in metres at p_W by trilinear interpolation of the 8 voxels around it; none
+  /// when one of them was never observed.
+  std::optional<float> sdfAt(const Eigen::Vector3f& p_W) const;
+
+  /// The voxel at global grid index g, or none when its block is not allocated.
+  std::optional<Voxel> voxelAt(const Eigen::Vector3i& g) const;
+
+  std::size_t blockCount() const;
+  /// Bytes held by the blocks and the hash map.
+  std::size_t memoryBytes() const;
+  const VolumeConfig& config() const { return config_; }
+
+  struct Impl;  ///< defined in fusion/src/volume_internal.h, for raycasting and meshing
+  const Impl& impl() const { return *impl_; }
+
+ private:
+  VolumeConfig config_;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace objscan::fusion

@@ -1,0 +1,183 @@
+#include "objscan/fusion/icp.h"
+
+#include <cmath>
+#include <cstdio>
+#include <stdexcept>
+#include <vector>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
+#include <Eigen/Cholesky>
+
+namespace objscan::fusion {
+
+namespace {
+
+/// Sums of one Gauss-Newton step: J^T W J (upper triangle), J^T W r, and the inlier statistics.
+struct NormalEquations {
+  Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
+  Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
+  std::size_t inliers = 0;
+  double squared_residuals = 0.0;
+
+  void add(const NormalEquations& o) {
+    A += o.A;
+    b += o.b;
+    inliers += o.inliers;
+    squared_residuals += o.squared_residuals;
+  }
+};
+
+NormalEquations accumulate(const DepthLevel& frame, const ModelMaps& model, const Pose& T_W_C,
+                           const TrackingConfig& config) {
+  const Eigen::Matrix3f R = T_W_C.linear();
+  const Eigen::Vector3f t = T_W_C.translation();
+  const Pose T_M_W = model.T_W_C.inverse();  // world to the model's camera
+  const Intrinsics& in = model.intrinsics;
+  const float fx = static_cast<float>(in.fx_px), fy = static_cast<float>(in.fy_px);
+  const float cx = static_cast<float>(in.cx_px), cy = static_cast<float>(in.cy_px);
+  const float max_d2 = config.max_distance_m * config.max_distance_m;
+  const float min_cos = std::cos(config.max_angle_rad);
+  const float huber = config.huber_m;
+  const int width = frame.depth_m.cols;
+  return tbb::parallel_reduce(
+      tbb::blocked_range<int>(0, frame.depth_m.rows), NormalEquations(),
+      [&](const tbb::blocked_range<int>& rows, NormalEquations sum) {
+        // Single precision inside a row, double across rows.
+        Eigen::Matrix<float, 6, 6> A = Eigen::Matrix<float, 6, 6>::Zero();
+        Eigen::Matrix<float, 6, 1> b = Eigen::Matrix<float, 6, 1>::Zero();
+        for (int v = rows.begin(); v != rows.end(); ++v) {
+          A.setZero();
+          b.setZero();
+          for (int u = 0; u < width; ++u) {
+            const std::size_t i = static_cast<std::size_t>(v) * width + u;
+            const Eigen::Vector3f& n_C = frame.normals_C[i];
+            if (!n_C.allFinite()) continue;
+            const Eigen::Vector3f p_W = R * frame.vertices_C[i] + t;
+            const Eigen::Vector3f p_M = T_M_W * p_W;
+            if (p_M.z() <= 0.0f) continue;
+            const int mu = static_cast<int>(std::lround(fx * p_M.x() / p_M.z() + cx));
+            const int mv = static_cast<int>(std::lround(fy * p_M.y() / p_M.z() + cy));
+            if (mu < 0 || mv < 0 || mu >= in.width_px || mv >= in.height_px) continue;
+            const std::size_t j = static_cast<std::size_t>(mv) * in.width_px + mu;
+            const Eigen::Vector3f& m = model.vertices_W[j];
+            const Eigen::Vector3f& nm = model.normals_W[j];
+            if (!nm.allFinite()) continue;
+            const Eigen::Vector3f d = p_W - m;
+            if (d.squaredNorm() > max_d2) continue;
+            if ((R * n_C).dot(nm) < min_cos) continue;
+            const float r = nm.dot(d);
+            const float w = std::abs(r) <= huber ? 1.0f : huber / std::abs(r);
+            Eigen::Matrix<float, 6, 1> J;
+            // p x n, written out: GCC 12 misreads Eigen's vectorised cross() (-Warray-bounds).
+            J << p_W.y() * nm.z() - p_W.z() * nm.y(), p_W.z() * nm.x() - p_W.x() * nm.z(),
+                p_W.x() * nm.y() - p_W.y() * nm.x(), nm.x(), nm.y(), nm.z();
+            A.selfadjointView<Eigen::Upper>().rankUpdate(J, w);
+            b -= w * r * J;
+            ++sum.inliers;
+            sum.squared_residuals += static_cast<double>(r) * r;
+          }
+          sum.A += A.cast<double>();
+          sum.b += b.cast<double>();
+        }
+        return sum;
+      },
+      [](NormalEquations a, const NormalEquations& o) {
+        a.add(o);
+        return a;
+      });
+}
+
+/// exp of a small twist (rotation vector w, translation t), left-multiplied.
+Pose twistToPose(const Eigen::Matrix<double, 6, 1>& x) {
+  Pose delta = Pose::Identity();
+  const Eigen::Vector3d w = x.head<3>();
+  const double angle = w.norm();
+  if (angle > 0.0)
+    delta.linear() = Eigen::AngleAxisd(angle, w / angle).toRotationMatrix().cast<float>();
+  delta.translation() = x.tail<3>().cast<float>();
+  return delta;
+}
+
+}  // namespace
+
+void TrackingConfig::validate() const {
+  for (int n : iterations) {
+    if (n < 0 || n > 100) throw std::invalid_argument("ICP iterations must be 0 to 100 per level");
+  }
+  const auto positive = [](float x) { return std::isfinite(x) && x > 0.0f; };
+  if (!positive(max_distance_m) || !positive(max_angle_rad) || !positive(huber_m) ||
+      !positive(max_rmse_m) || !positive(max_translation_m) || !positive(max_rotation_rad)) {
+    throw std::invalid_argument("ICP distances, angles and thresholds must be positive");
+  }
+  if (!(min_inlier_fraction >= 0.0f && min_inlier_fraction < 1.0f)) {
+    throw std::invalid_argument("the minimum inlier share must be in [0, 1)");
+  }
+}
+
+TrackingResult trackFrame(const DepthPyramid& frame, const ModelMaps& model,
+                          const Pose& initial_T_W_C, const TrackingConfig& config) {
+  const int levels = std::min<int>(static_cast<int>(frame.levels.size()), 3);
+  std::vector<ModelMaps> model_levels;
+  model_levels.reserve(static_cast<std::size_t>(levels));
+  model_levels.push_back(model);
+  for (int l = 1; l < levels; ++l) model_levels.push_back(halfResolution(model_levels.back()));
+
+  TrackingResult result;
+  Pose T = initial_T_W_C;
+  NormalEquations last;
+  bool solved = true;
+  for (int level = levels - 1; level >= 0 && solved; --level) {
+    const DepthLevel& f = frame.levels[static_cast<std::size_t>(level)];
+    const ModelMaps& m = model_levels[static_cast<std::size_t>(level)];
+    for (int it = 0; it < config.iterations[static_cast<std::size_t>(level)]; ++it) {
+      last = accumulate(f, m, T, config);
+      if (last.inliers < 6) {
+        solved = false;
+        break;
+      }
+      const Eigen::Matrix<double, 6, 6> A = last.A.selfadjointView<Eigen::Upper>();
+      const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(A);
+      const Eigen::Matrix<double, 6, 1> x = ldlt.solve(last.b);
+      if (ldlt.info() != Eigen::Success || !x.allFinite()) {
+        solved = false;
+        break;
+      }
+      T = twistToPose(x) * T;
+      T.linear() = Eigen::Quaternionf(T.linear()).normalized().toRotationMatrix();
+      ++result.iterations;
+      if (x.head<3>().norm() < 1e-6 && x.tail<3>().norm() < 1e-6) break;
+    }
+  }
+  // The statistics of the pose reached, at the finest level.
+  last = accumulate(frame.levels.front(), model_levels.front(), T, config);
+  result.T_W_C = T;
+  result.inliers = last.inliers;
+  const std::size_t valid = frame.levels.front().valid_pixels;
+  result.inlier_fraction =
+      valid > 0 ? static_cast<float>(last.inliers) / static_cast<float>(valid) : 0.0f;
+  result.rmse_m = last.inliers > 0
+                      ? static_cast<float>(std::sqrt(last.squared_residuals / last.inliers))
+                      : 0.0f;
+  const Pose motion = initial_T_W_C.inverse() * T;
+  const float moved_m = motion.translation().norm();
+  const float turned_rad = Eigen::AngleAxisf(motion.linear()).angle();
+  char why[160] = "";
+  if (!solved || !T.matrix().allFinite()) {
+    std::snprintf(why, sizeof why, "ICP found too few correspondences to solve for the pose");
+  } else if (result.inlier_fraction < config.min_inlier_fraction) {
+    std::snprintf(why, sizeof why, "only %.0f %% of the frame matched the model (needs %.0f %%)",
+                  100.0 * result.inlier_fraction, 100.0 * config.min_inlier_fraction);
+  } else if (result.rmse_m > config.max_rmse_m) {
+    std::snprintf(why, sizeof why, "the residual is %.1f mm (limit %.1f mm)", 1e3 * result.rmse_m,
+                  1e3 * config.max_rmse_m);
+  } else if (moved_m > config.max_translation_m || turned_rad > config.max_rotation_rad) {
+    std::snprintf(why, sizeof why, "the pose jumped %.0f mm and %.1f degrees in one frame",
+                  1e3 * moved_m, turned_rad * 180.0 / M_PI);
+  }
+  result.failure = why;
+  result.ok = result.failure.empty();
+  return result;
+}
+
+}  // namespace objscan::fusion

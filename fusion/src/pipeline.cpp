@@ -1,0 +1,114 @@
+#include "objscan/fusion/pipeline.h"
+
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+
+#include <opencv2/core.hpp>
+
+namespace objscan::fusion {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double msSince(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+}  // namespace
+
+void FusionConfig::validate() const {
+  preprocess.validate();
+  volume.validate();
+  tracking.validate();
+  if (!(min_valid_fraction >= 0.0f && min_valid_fraction < 1.0f)) {
+    throw std::invalid_argument("the minimum share of valid depth must be in [0, 1)");
+  }
+}
+
+Fusion::Fusion(const FusionConfig& config, const Intrinsics& intrinsics, const Pose& initial_T_W_C)
+    : config_(config), intrinsics_(intrinsics), volume_(config.volume), last_good_(initial_T_W_C) {
+  config_.validate();
+  intrinsics_.validate();
+  const int divisor = 1 << (config_.preprocess.pyramid_levels - 1);
+  if (intrinsics_.width_px % divisor != 0 || intrinsics_.height_px % divisor != 0) {
+    throw std::invalid_argument(
+        "the image size " + std::to_string(intrinsics_.width_px) + "x" +
+        std::to_string(intrinsics_.height_px) + " must divide by " + std::to_string(divisor) +
+        " for a " + std::to_string(config_.preprocess.pyramid_levels) + "-level pyramid");
+  }
+}
+
+FrameOutcome Fusion::process(const RgbdFrame& frame, const std::optional<Pose>& given_T_W_C) {
+  frame.validate();
+  if (frame.depth_m.cols != intrinsics_.width_px || frame.depth_m.rows != intrinsics_.height_px) {
+    throw std::invalid_argument(
+        "frame " + std::to_string(frame.index) + " is " + std::to_string(frame.depth_m.cols) + "x" +
+        std::to_string(frame.depth_m.rows) + ", but the intrinsics are for " +
+        std::to_string(intrinsics_.width_px) + "x" + std::to_string(intrinsics_.height_px));
+  }
+  ++processed_;
+  FrameOutcome out;
+  out.T_W_C = last_good_;
+
+  auto start = Clock::now();
+  const cv::Mat depth = clipDepth(frame.depth_m, config_.preprocess);
+  const double valid = static_cast<double>(cv::countNonZero(depth));
+  if (valid < config_.min_valid_fraction * static_cast<double>(depth.total()) || valid == 0.0) {
+    out.status = FrameStatus::kNoDepth;
+    out.reason = "no depth readings between " + std::to_string(config_.preprocess.min_depth_m) +
+                 " and " + std::to_string(config_.preprocess.max_depth_m) + " m";
+    out.timings.preprocess_ms = msSince(start);
+    ++skipped_;
+    return out;
+  }
+
+  Pose pose = last_good_;
+  if (given_T_W_C) {
+    pose = *given_T_W_C;
+    out.status = FrameStatus::kGivenPose;
+    out.timings.preprocess_ms = msSince(start);
+  } else if (volume_.blockCount() == 0) {
+    out.status = FrameStatus::kFirst;
+    out.timings.preprocess_ms = msSince(start);
+  } else {
+    const DepthPyramid pyramid = buildPyramid(depth, intrinsics_, config_.preprocess);
+    out.timings.preprocess_ms = msSince(start);
+    start = Clock::now();
+    if (!model_current_) {
+      model_ = raycast(volume_, intrinsics_, last_good_, config_.preprocess.min_depth_m,
+                       config_.preprocess.max_depth_m);
+      model_current_ = true;
+    }
+    out.tracking = trackFrame(pyramid, model_, last_good_, config_.tracking);
+    out.timings.track_ms = msSince(start);
+    if (!out.tracking.ok) {
+      out.status = FrameStatus::kLost;
+      out.reason = out.tracking.failure;
+      ++lost_;
+      return out;
+    }
+    pose = out.tracking.T_W_C;
+    out.status = FrameStatus::kTracked;
+  }
+
+  start = Clock::now();
+  out.blocks_updated = volume_.integrate(depth, frame.color_rgb, intrinsics_, pose);
+  out.timings.integrate_ms = msSince(start);
+  last_good_ = pose;
+  out.T_W_C = pose;
+  trajectory_.poses.push_back({frame.stamp_s, pose});
+  model_current_ = false;
+  if (!given_T_W_C) {
+    // The model for the next frame; with given poses it is cast only when tracking needs it.
+    start = Clock::now();
+    model_ = raycast(volume_, intrinsics_, pose, config_.preprocess.min_depth_m,
+                     config_.preprocess.max_depth_m);
+    model_current_ = true;
+    out.timings.raycast_ms = msSince(start);
+  }
+  return out;
+}
+
+}  // namespace objscan::fusion

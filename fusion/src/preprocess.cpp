@@ -1,0 +1,168 @@
+#include "objscan/fusion/preprocess.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <Eigen/Geometry>
+#include <opencv2/imgproc.hpp>
+
+namespace objscan::fusion {
+
+namespace {
+
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+
+void require(bool ok, const std::string& what) {
+  if (!ok) throw std::invalid_argument(what);
+}
+
+/// Runs body(row) for every row in [0, rows), in parallel.
+template <typename Body>
+void forEachRow(int rows, const Body& body) {
+  tbb::parallel_for(tbb::blocked_range<int>(0, rows), [&](const tbb::blocked_range<int>& r) {
+    for (int v = r.begin(); v != r.end(); ++v) body(v);
+  });
+}
+
+std::vector<Eigen::Vector3f> backProject(const cv::Mat& depth_m, const Intrinsics& in) {
+  std::vector<Eigen::Vector3f> vertices(depth_m.total());
+  const float fx_inv = 1.0f / static_cast<float>(in.fx_px);
+  const float fy_inv = 1.0f / static_cast<float>(in.fy_px);
+  const float cx = static_cast<float>(in.cx_px), cy = static_cast<float>(in.cy_px);
+  forEachRow(depth_m.rows, [&](int v) {
+    const float* d = depth_m.ptr<float>(v);
+    Eigen::Vector3f* out = vertices.data() + static_cast<std::size_t>(v) * depth_m.cols;
+    for (int u = 0; u < depth_m.cols; ++u) {
+      const float z = d[u];
+      out[u] = z > 0.0f ? Eigen::Vector3f((static_cast<float>(u) - cx) * z * fx_inv,
+                                          (static_cast<float>(v) - cy) * z * fy_inv, z)
+                        : Eigen::Vector3f(kNaN, kNaN, kNaN);
+    }
+  });
+  return vertices;
+}
+
+/// Half resolution: each pixel averages the valid pixels of its 2x2 block that lie within
+/// `band_m` of the nearest of them (so that a block straddling an edge does not average the
+/// foreground with the background).
+cv::Mat halfResolution(const cv::Mat& depth_m, float band_m) {
+  cv::Mat half(depth_m.rows / 2, depth_m.cols / 2, CV_32FC1);
+  forEachRow(half.rows, [&](int v) {
+    const float* a = depth_m.ptr<float>(2 * v);
+    const float* b = depth_m.ptr<float>(2 * v + 1);
+    float* out = half.ptr<float>(v);
+    for (int u = 0; u < half.cols; ++u) {
+      const float d[4] = {a[2 * u], a[2 * u + 1], b[2 * u], b[2 * u + 1]};
+      float nearest = std::numeric_limits<float>::infinity();
+      for (float x : d) {
+        if (x > 0.0f) nearest = std::min(nearest, x);
+      }
+      float sum = 0.0f;
+      int n = 0;
+      for (float x : d) {
+        if (x > 0.0f && x - nearest <= band_m) {
+          sum += x;
+          ++n;
+        }
+      }
+      out[u] = n > 0 ? sum / static_cast<float>(n) : 0.0f;
+    }
+  });
+  return half;
+}
+
+}  // namespace
+
+void PreprocessConfig::validate() const {
+  require(std::isfinite(min_depth_m) && min_depth_m >= 0.0f,
+          "the minimum depth must be a finite number >= 0 m");
+  require(std::isfinite(max_depth_m) && max_depth_m > min_depth_m,
+          "the maximum depth must be finite and larger than the minimum depth");
+  require(bilateral_radius_px >= 0 && bilateral_radius_px <= 10,
+          "the bilateral filter radius must be 0 (off) to 10 pixels");
+  require(bilateral_radius_px == 0 ||
+              (bilateral_sigma_space_px > 0.0f && bilateral_sigma_depth_m > 0.0f),
+          "the bilateral filter's sigmas must be positive");
+  require(pyramid_levels >= 1 && pyramid_levels <= 5, "the pyramid must have 1 to 5 levels");
+}
+
+cv::Mat clipDepth(const cv::Mat& depth_m, const PreprocessConfig& config) {
+  if (depth_m.type() != CV_32FC1) throw std::invalid_argument("depth must be CV_32FC1 metres");
+  cv::Mat out(depth_m.size(), CV_32FC1);
+  forEachRow(depth_m.rows, [&](int v) {
+    const float* in = depth_m.ptr<float>(v);
+    float* o = out.ptr<float>(v);
+    for (int u = 0; u < depth_m.cols; ++u) {
+      const float z = in[u];
+      // NaN fails both comparisons and is dropped with the rest.
+      o[u] = z >= config.min_depth_m && z <= config.max_depth_m ? z : 0.0f;
+    }
+  });
+  return out;
+}
+
+Intrinsics levelIntrinsics(const Intrinsics& full, int level) {
+  Intrinsics in = full;
+  const double s = 1.0 / static_cast<double>(1 << level);
+  in.fx_px = full.fx_px * s;
+  in.fy_px = full.fy_px * s;
+  in.cx_px = (full.cx_px + 0.5) * s - 0.5;
+  in.cy_px = (full.cy_px + 0.5) * s - 0.5;
+  in.width_px = full.width_px >> level;
+  in.height_px = full.height_px >> level;
+  return in;
+}
+
+std::vector<Eigen::Vector3f> computeNormals(const std::vector<Eigen::Vector3f>& vertices_C,
+                                            int width, int height) {
+  std::vector<Eigen::Vector3f> normals(vertices_C.size(), Eigen::Vector3f::Constant(kNaN));
+  forEachRow(height - 1, [&](int v) {
+    for (int u = 0; u + 1 < width; ++u) {
+      const std::size_t i = static_cast<std::size_t>(v) * width + u;
+      const Eigen::Vector3f& p = vertices_C[i];
+      const Eigen::Vector3f& right = vertices_C[i + 1];
+      const Eigen::Vector3f& down = vertices_C[i + width];
+      if (!p.allFinite() || !right.allFinite() || !down.allFinite()) continue;
+      Eigen::Vector3f n = (right - p).cross(down - p);
+      const float norm = n.norm();
+      if (!(norm > 0.0f)) continue;
+      n /= norm;
+      normals[i] = n.dot(p) > 0.0f ? Eigen::Vector3f(-n) : n;
+    }
+  });
+  return normals;
+}
+
+DepthPyramid buildPyramid(const cv::Mat& clipped_depth_m, const Intrinsics& intrinsics,
+                          const PreprocessConfig& config) {
+  DepthPyramid pyramid;
+  cv::Mat depth = clipped_depth_m;
+  if (config.bilateral_radius_px > 0) {
+    // OpenCV's filter weighs neighbours by exp(-dz^2 / 2 sigma^2): a missing reading (0) next to
+    // a surface metres away gets weight ~0 and stays 0, and does not pull valid pixels to 0.
+    cv::Mat filtered;
+    cv::bilateralFilter(depth, filtered, 2 * config.bilateral_radius_px + 1,
+                        config.bilateral_sigma_depth_m, config.bilateral_sigma_space_px);
+    // Keep holes holes: the filter may spread a little depth into a missing pixel.
+    filtered.setTo(0.0f, depth == 0.0f);
+    depth = filtered;
+  }
+  for (int level = 0; level < config.pyramid_levels; ++level) {
+    if (level > 0) depth = halfResolution(depth, 3.0f * config.bilateral_sigma_depth_m);
+    DepthLevel l;
+    l.intrinsics = levelIntrinsics(intrinsics, level);
+    l.depth_m = depth;
+    l.vertices_C = backProject(depth, l.intrinsics);
+    l.normals_C = computeNormals(l.vertices_C, depth.cols, depth.rows);
+    for (const Eigen::Vector3f& n : l.normals_C) l.valid_pixels += n.allFinite() ? 1 : 0;
+    pyramid.levels.push_back(std::move(l));
+  }
+  return pyramid;
+}
+
+}  // namespace objscan::fusion
