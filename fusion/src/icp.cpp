@@ -1,13 +1,17 @@
 #include "objscan/fusion/icp.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <iterator>
 #include <stdexcept>
 #include <vector>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_reduce.h>
+
 #include <Eigen/Cholesky>
+#include "grid_math.h"
 
 namespace objscan::fusion {
 
@@ -43,12 +47,11 @@ NormalEquations accumulate(const DepthLevel& frame, const ModelMaps& model, cons
   return tbb::parallel_reduce(
       tbb::blocked_range<int>(0, frame.depth_m.rows), NormalEquations(),
       [&](const tbb::blocked_range<int>& rows, NormalEquations sum) {
-        // Single precision inside a row, double across rows.
-        Eigen::Matrix<float, 6, 6> A = Eigen::Matrix<float, 6, 6>::Zero();
-        Eigen::Matrix<float, 6, 1> b = Eigen::Matrix<float, 6, 1>::Zero();
+        // Upper triangle of J^T W J (21 values) and J^T W r (6), single precision within a
+        // row, double across rows. Written out: Eigen's 6x6 rank update is not inlined.
+        float acc[27];
         for (int v = rows.begin(); v != rows.end(); ++v) {
-          A.setZero();
-          b.setZero();
+          std::fill(std::begin(acc), std::end(acc), 0.0f);
           for (int u = 0; u < width; ++u) {
             const std::size_t i = static_cast<std::size_t>(v) * width + u;
             const Eigen::Vector3f& n_C = frame.normals_C[i];
@@ -56,8 +59,8 @@ NormalEquations accumulate(const DepthLevel& frame, const ModelMaps& model, cons
             const Eigen::Vector3f p_W = R * frame.vertices_C[i] + t;
             const Eigen::Vector3f p_M = T_M_W * p_W;
             if (p_M.z() <= 0.0f) continue;
-            const int mu = static_cast<int>(std::lround(fx * p_M.x() / p_M.z() + cx));
-            const int mv = static_cast<int>(std::lround(fy * p_M.y() / p_M.z() + cy));
+            const int mu = roundToInt(fx * p_M.x() / p_M.z() + cx);
+            const int mv = roundToInt(fy * p_M.y() / p_M.z() + cy);
             if (mu < 0 || mv < 0 || mu >= in.width_px || mv >= in.height_px) continue;
             const std::size_t j = static_cast<std::size_t>(mv) * in.width_px + mu;
             const Eigen::Vector3f& m = model.vertices_W[j];
@@ -68,17 +71,27 @@ NormalEquations accumulate(const DepthLevel& frame, const ModelMaps& model, cons
             if ((R * n_C).dot(nm) < min_cos) continue;
             const float r = nm.dot(d);
             const float w = std::abs(r) <= huber ? 1.0f : huber / std::abs(r);
-            Eigen::Matrix<float, 6, 1> J;
-            // p x n, written out: GCC 12 misreads Eigen's vectorised cross() (-Warray-bounds).
-            J << p_W.y() * nm.z() - p_W.z() * nm.y(), p_W.z() * nm.x() - p_W.x() * nm.z(),
-                p_W.x() * nm.y() - p_W.y() * nm.x(), nm.x(), nm.y(), nm.z();
-            A.selfadjointView<Eigen::Upper>().rankUpdate(J, w);
-            b -= w * r * J;
+            // J = [p x n, n]: the residual's derivative for a small motion (rotation first).
+            const float J[6] = {p_W.y() * nm.z() - p_W.z() * nm.y(),
+                                p_W.z() * nm.x() - p_W.x() * nm.z(),
+                                p_W.x() * nm.y() - p_W.y() * nm.x(),
+                                nm.x(),
+                                nm.y(),
+                                nm.z()};
+            int k = 0;
+            for (int a = 0; a < 6; ++a) {
+              const float wa = w * J[a];
+              for (int b = a; b < 6; ++b) acc[k++] += wa * J[b];
+              acc[21 + a] -= wa * r;
+            }
             ++sum.inliers;
             sum.squared_residuals += static_cast<double>(r) * r;
           }
-          sum.A += A.cast<double>();
-          sum.b += b.cast<double>();
+          int k = 0;
+          for (int a = 0; a < 6; ++a) {
+            for (int b = a; b < 6; ++b) sum.A(a, b) += acc[k++];
+            sum.b(a) += acc[21 + a];
+          }
         }
         return sum;
       },
@@ -146,7 +159,8 @@ TrackingResult trackFrame(const DepthPyramid& frame, const ModelMaps& model,
       T = twistToPose(x) * T;
       T.linear() = Eigen::Quaternionf(T.linear()).normalized().toRotationMatrix();
       ++result.iterations;
-      if (x.head<3>().norm() < 1e-6 && x.tail<3>().norm() < 1e-6) break;
+      // Converged: the step turns less than 0.006 degrees and moves less than 0.1 mm.
+      if (x.head<3>().norm() < 1e-4 && x.tail<3>().norm() < 1e-4) break;
     }
   }
   // The statistics of the pose reached, at the finest level.

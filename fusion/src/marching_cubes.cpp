@@ -201,8 +201,8 @@ TriangleMesh extractMesh(const TsdfVolume& volume_in) {
                       static_cast<std::int32_t>(out.positions.size());
                   out.positions.push_back(p * voxel);
                   const auto lerp = [t](std::uint8_t a, std::uint8_t b) {
-                    return static_cast<std::uint8_t>(
-                        std::lround(static_cast<float>(a) + t * (static_cast<float>(b) - a)));
+                    return static_cast<std::uint8_t>(static_cast<float>(a) +
+                                                     t * (static_cast<float>(b) - a) + 0.5f);
                   };
                   out.colors.push_back(
                       Rgb8(lerp(v0->r, v1->r), lerp(v0->g, v1->g), lerp(v0->b, v1->b)));

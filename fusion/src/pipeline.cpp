@@ -104,7 +104,7 @@ FrameOutcome Fusion::process(const RgbdFrame& frame, const std::optional<Pose>& 
     // The model for the next frame; with given poses it is cast only when tracking needs it.
     start = Clock::now();
     model_ = raycast(volume_, intrinsics_, pose, config_.preprocess.min_depth_m,
-                     config_.preprocess.max_depth_m);
+                     config_.preprocess.max_depth_m, false, &depth);
     model_current_ = true;
     out.timings.raycast_ms = msSince(start);
   }

@@ -4,12 +4,14 @@
 #include <cmath>
 #include <limits>
 #include <optional>
+#include <stdexcept>
 
 #include <tbb/blocked_range.h>
 #include <tbb/blocked_range2d.h>
 #include <tbb/combinable.h>
 #include <tbb/parallel_for.h>
 
+#include "grid_math.h"
 #include "objscan/fusion/preprocess.h"
 #include "volume_internal.h"
 
@@ -108,7 +110,8 @@ RangeImage projectBlocks(const TsdfVolume::Impl& volume, const Intrinsics& in, c
 }  // namespace
 
 ModelMaps raycast(const TsdfVolume& volume_in, const Intrinsics& in, const Pose& T_W_C,
-                  float min_depth_m, float max_depth_m, bool with_colors) {
+                  float min_depth_m, float max_depth_m, bool with_colors,
+                  const cv::Mat* depth_hint) {
   const TsdfVolume::Impl& volume = volume_in.impl();
   const float voxel = volume.voxel_size_m;
   const float trunc = volume.truncation_m;
@@ -126,6 +129,11 @@ ModelMaps raycast(const TsdfVolume& volume_in, const Intrinsics& in, const Pose&
   const float fx = static_cast<float>(in.fx_px), fy = static_cast<float>(in.fy_px);
   const float cx = static_cast<float>(in.cx_px), cy = static_cast<float>(in.cy_px);
   const float inv_voxel = 1.0f / voxel;
+  const float hint_margin_m = 1.5f * trunc;
+  if (depth_hint && (depth_hint->type() != CV_32FC1 || depth_hint->cols != in.width_px ||
+                     depth_hint->rows != in.height_px)) {
+    throw std::invalid_argument("raycast: the depth hint must be CV_32FC1 of the image's size");
+  }
   tbb::combinable<std::size_t> hits([] { return std::size_t{0}; });
   tbb::parallel_for(
       tbb::blocked_range<int>(0, in.height_px), [&](const tbb::blocked_range<int>& r) {
@@ -146,60 +154,89 @@ ModelMaps raycast(const TsdfVolume& volume_in, const Intrinsics& in, const Pose&
             const float unknown_step_z = 0.8f * trunc / metres_per_z;
             const float min_step_z = voxel / metres_per_z;
 
-            float z = z_begin, prev_z = 0.0f, prev_f = 0.0f;
-            bool have_prev = false;
-            std::optional<float> hit_z;
-            while (z <= z_end) {
-              const Eigen::Vector3f q = q0 + z * dq;
-              const Voxel* vox = reader.get(Eigen::Vector3i(static_cast<int>(std::lround(q.x())),
-                                                            static_cast<int>(std::lround(q.y())),
-                                                            static_cast<int>(std::lround(q.z()))));
-              if (!vox || vox->weight <= 0.0f) {
-                have_prev = false;
-                z += unknown_step_z;
-                continue;
-              }
-              const float f = vox->tsdf;
-              if (f < 0.0f) {
-                if (!have_prev) break;  // behind a surface without having seen its front
-                // Refine between the two samples with the trilinear distance where available.
-                float f0 = prev_f, f1 = f;
-                const std::optional<float> t0 = reader.tsdf(q0 + prev_z * dq);
-                const std::optional<float> t1 = reader.tsdf(q);
-                if (t0 && t1 && *t0 > 0.0f && *t1 < 0.0f) {
-                  f0 = *t0;
-                  f1 = *t1;
+            // Marches from z to z_end. Returns the depth of the first crossing from positive to
+            // negative (between two nearest-voxel samples) in *bracket, with the last positive
+            // sample's depth in *before; false when the first observed sample is negative (the
+            // back of a surface) or nothing is crossed.
+            const auto march = [&](float z, float z_stop, float* bracket, float* before,
+                                   bool* back_face) {
+              bool have_prev = false;
+              float prev_z = 0.0f, prev_f = 0.0f;
+              *back_face = false;
+              while (z <= z_stop) {
+                const Eigen::Vector3f q = q0 + z * dq;
+                const Eigen::Vector3i g(roundToInt(q.x()), roundToInt(q.y()), roundToInt(q.z()));
+                const Voxel* vox = reader.get(g);
+                if (!vox) {
+                  // An unallocated block holds no surface: jump to where the ray leaves it.
+                  float exit_z = std::numeric_limits<float>::infinity();
+                  for (int a = 0; a < 3; ++a) {
+                    const float lo = static_cast<float>((g[a] >> 3) * kBlockSide) - 0.5f;
+                    if (dq[a] > 0.0f) {
+                      exit_z = std::min(exit_z, z + (lo + kBlockSide - q[a]) / dq[a]);
+                    } else if (dq[a] < 0.0f) {
+                      exit_z = std::min(exit_z, z + (lo - q[a]) / dq[a]);
+                    }
+                  }
+                  have_prev = false;
+                  z = std::max(exit_z, z + 0.01f * min_step_z) + 0.01f * min_step_z;
+                  continue;
                 }
-                hit_z = prev_z + (z - prev_z) * f0 / (f0 - f1);
-                break;
+                if (vox->weight <= 0.0f) {
+                  have_prev = false;
+                  z += unknown_step_z;
+                  continue;
+                }
+                const float f = vox->tsdf;
+                if (f < 0.0f) {
+                  if (!have_prev) {
+                    *back_face = true;
+                    return false;
+                  }
+                  *bracket = prev_z + (z - prev_z) * prev_f / (prev_f - f);
+                  *before = prev_z;
+                  return true;
+                }
+                have_prev = true;
+                prev_z = z;
+                prev_f = f;
+                z += std::max(min_step_z, 0.8f * f * trunc / metres_per_z);
               }
-              have_prev = true;
-              prev_z = z;
-              prev_f = f;
-              z += std::max(min_step_z, 0.8f * f * trunc / metres_per_z);
+              return false;
+            };
+            float bracket = 0.0f, prev_z = 0.0f;
+            bool back_face = false, found = false;
+            // Cast right after integrating a depth image from the same pose, the surface is
+            // near that image's reading: start a margin in front of it. If that start lies
+            // behind a surface, march the whole range instead.
+            const float hint = depth_hint ? depth_hint->ptr<float>(v)[u] : 0.0f;
+            if (hint > 0.0f) {
+              found = march(std::max(z_begin, hint - hint_margin_m), z_end, &bracket, &prev_z,
+                            &back_face);
             }
-            if (!hit_z) continue;
-            const Eigen::Vector3f q = q0 + *hit_z * dq;
-            // Central differences of the interpolated distance, one voxel apart.
+            if (!(hint > 0.0f) || back_face) {
+              found = march(z_begin, z_end, &bracket, &prev_z, &back_face);
+            }
+            if (!found) continue;
+            const float z = bracket + (bracket - prev_z);  // upper end of the Newton clamp
+            // One Newton step on the interpolated distance along the ray, kept near the
+            // bracket; the same 8 voxels give the normal.
+            float value = 0.0f;
             Eigen::Vector3f gradient;
-            bool ok = true;
-            for (int axis = 0; axis < 3 && ok; ++axis) {
-              Eigen::Vector3f e = Eigen::Vector3f::Zero();
-              e[axis] = 1.0f;
-              const std::optional<float> plus = reader.tsdf(q + e), minus = reader.tsdf(q - e);
-              ok = plus && minus;
-              if (ok) gradient[axis] = *plus - *minus;
-            }
-            const float norm = ok ? gradient.norm() : 0.0f;
+            if (!reader.sample(q0 + bracket * dq, &value, &gradient)) continue;
+            const float slope = gradient.dot(dq);  // d(value)/dz, negative toward the surface
+            float hit_z = bracket;
+            if (slope < 0.0f) hit_z = std::clamp(hit_z - value / slope, prev_z, z);
+            const float norm = gradient.norm();
             if (!(norm > 0.0f)) continue;
+            const Eigen::Vector3f q = q0 + hit_z * dq;
             const std::size_t i = static_cast<std::size_t>(v) * in.width_px + u;
             maps.vertices_W[i] = q * voxel;
             maps.normals_W[i] = gradient / norm;
             ++hit_count;
             if (with_colors) {
-              const Voxel* vox = reader.get(Eigen::Vector3i(static_cast<int>(std::lround(q.x())),
-                                                            static_cast<int>(std::lround(q.y())),
-                                                            static_cast<int>(std::lround(q.z()))));
+              const Voxel* vox = reader.get(
+                  Eigen::Vector3i(roundToInt(q.x()), roundToInt(q.y()), roundToInt(q.z())));
               if (vox) maps.colors[i] = Rgb8(vox->r, vox->g, vox->b);
             }
           }

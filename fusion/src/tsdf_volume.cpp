@@ -8,6 +8,7 @@
 #include <tbb/parallel_for.h>
 #include <tsl/robin_set.h>
 
+#include "grid_math.h"
 #include "objscan/fusion/tsdf_volume.h"
 #include "volume_internal.h"
 
@@ -78,9 +79,9 @@ std::optional<Voxel> TsdfVolume::voxelAt(const Eigen::Vector3i& g) const {
 
 std::optional<float> TsdfVolume::sdfAt(const Eigen::Vector3f& p_W) const {
   VoxelReader reader(*impl_);
-  const std::optional<float> t = reader.tsdf(p_W / impl_->voxel_size_m);
-  if (!t) return std::nullopt;
-  return *t * impl_->truncation_m;
+  float t = 0.0f;
+  if (!reader.sample(p_W / impl_->voxel_size_m, &t)) return std::nullopt;
+  return t * impl_->truncation_m;
 }
 
 std::size_t TsdfVolume::integrate(const cv::Mat& depth_m, const cv::Mat& color_rgb,
@@ -119,7 +120,8 @@ std::size_t TsdfVolume::integrate(const cv::Mat& depth_m, const cv::Mat& color_r
             for (int k = 0; k <= n; ++k) {
               const float zk = z0 + (z1 - z0) * static_cast<float>(k) / static_cast<float>(n);
               const Eigen::Vector3f p = t_WC + zk * dir_W;
-              const Eigen::Vector3i b = (p / block_m).array().floor().cast<int>();
+              const Eigen::Vector3i b(floorToInt(p.x() / block_m), floorToInt(p.y() / block_m),
+                                      floorToInt(p.z() / block_m));
               if (!blockInRange(b)) continue;
               const std::uint64_t key = blockKey(b);
               if (key != last) keys.insert(key);
@@ -168,8 +170,8 @@ std::size_t TsdfVolume::integrate(const cv::Mat& depth_m, const cv::Mat& color_r
               for (int x = 0; x < kBlockSide; ++x, p_C += step_x_C) {
                 if (p_C.z() <= 0.0f) continue;
                 const float inv_z = 1.0f / p_C.z();
-                const int u = static_cast<int>(std::lround(fx * p_C.x() * inv_z + cx));
-                const int v = static_cast<int>(std::lround(fy * p_C.y() * inv_z + cy));
+                const int u = roundToInt(fx * p_C.x() * inv_z + cx);
+                const int v = roundToInt(fy * p_C.y() * inv_z + cy);
                 if (u < 0 || v < 0 || u >= depth_m.cols || v >= depth_m.rows) continue;
                 const float d = depth_m.ptr<float>(v)[u];
                 if (!(d > 0.0f)) continue;

@@ -11,6 +11,7 @@
 #include <tsl/robin_map.h>
 #include <Eigen/Core>
 
+#include "grid_math.h"
 #include "objscan/fusion/tsdf_volume.h"
 
 namespace objscan::fusion {
@@ -80,41 +81,58 @@ class VoxelReader {
 
   /// The voxel at global index g, or nullptr when its block is not allocated.
   const Voxel* get(const Eigen::Vector3i& g) {
-    const Eigen::Vector3i b = blockOf(g);
-    if (!valid_ || b != cached_index_) {
-      cached_ = volume_.find(b);
-      cached_index_ = b;
-      valid_ = true;
-    }
-    return cached_ ? &cached_->voxels[static_cast<std::size_t>(localIndex(g))] : nullptr;
+    const VoxelBlock* b = block(blockOf(g));
+    return b ? &b->voxels[static_cast<std::size_t>(localIndex(g))] : nullptr;
   }
 
-  /// Trilinear signed distance in truncation units at grid coordinates q (= p / voxel size);
-  /// none when one of the 8 voxels is unobserved.
-  std::optional<float> tsdf(const Eigen::Vector3f& q) {
-    const Eigen::Vector3f f = q.array().floor();
-    const Eigen::Vector3i g0 = f.cast<int>();
-    const Eigen::Vector3f t = q - f;
-    float corner[8];
+  /// The block with coordinates b, or nullptr. A hash-map look-up costs tens of nanoseconds;
+  /// neighbouring rays and cells keep meeting the same few blocks, so the answers (absent blocks
+  /// too) are kept in a small direct-mapped cache.
+  const VoxelBlock* block(const Eigen::Vector3i& b) {
+    const unsigned slot =
+        (static_cast<unsigned>(b.x()) * 73856093u ^ static_cast<unsigned>(b.y()) * 19349663u ^
+         static_cast<unsigned>(b.z()) * 83492791u) &
+        (kCacheSlots - 1);
+    Entry& e = cache_[slot];
+    if (!e.valid || e.index != b) e = Entry{b, volume_.find(b), true};
+    return e.block;
+  }
+
+  /// Trilinear interpolation at grid coordinates q (= p / voxel size) of the signed distance in
+  /// truncation units, and, when asked, its gradient (per voxel) within the cell; false when one
+  /// of the 8 voxels around q was never observed.
+  bool sample(const Eigen::Vector3f& q, float* value, Eigen::Vector3f* gradient = nullptr) {
+    const int x0 = floorToInt(q.x()), y0 = floorToInt(q.y()), z0 = floorToInt(q.z());
+    const float tx = q.x() - static_cast<float>(x0), ty = q.y() - static_cast<float>(y0),
+                tz = q.z() - static_cast<float>(z0);
+    float c[8];
     for (int i = 0; i < 8; ++i) {
-      const Voxel* v = get(g0 + Eigen::Vector3i(i & 1, (i >> 1) & 1, (i >> 2) & 1));
-      if (!v || v->weight <= 0.0f) return std::nullopt;
-      corner[i] = v->tsdf;
+      const Voxel* v = get(Eigen::Vector3i(x0 + (i & 1), y0 + ((i >> 1) & 1), z0 + ((i >> 2) & 1)));
+      if (!v || v->weight <= 0.0f) return false;
+      c[i] = v->tsdf;
     }
-    const float x00 = corner[0] + t.x() * (corner[1] - corner[0]);
-    const float x10 = corner[2] + t.x() * (corner[3] - corner[2]);
-    const float x01 = corner[4] + t.x() * (corner[5] - corner[4]);
-    const float x11 = corner[6] + t.x() * (corner[7] - corner[6]);
-    const float y0 = x00 + t.y() * (x10 - x00);
-    const float y1 = x01 + t.y() * (x11 - x01);
-    return y0 + t.z() * (y1 - y0);
+    const float x00 = c[0] + tx * (c[1] - c[0]), x10 = c[2] + tx * (c[3] - c[2]);
+    const float x01 = c[4] + tx * (c[5] - c[4]), x11 = c[6] + tx * (c[7] - c[6]);
+    const float y0v = x00 + ty * (x10 - x00), y1v = x01 + ty * (x11 - x01);
+    *value = y0v + tz * (y1v - y0v);
+    if (gradient) {
+      const float gx0 = (c[1] - c[0]) + ty * ((c[3] - c[2]) - (c[1] - c[0]));
+      const float gx1 = (c[5] - c[4]) + ty * ((c[7] - c[6]) - (c[5] - c[4]));
+      *gradient = Eigen::Vector3f(gx0 + tz * (gx1 - gx0),
+                                  (x10 - x00) + tz * ((x11 - x01) - (x10 - x00)), y1v - y0v);
+    }
+    return true;
   }
 
  private:
+  static constexpr unsigned kCacheSlots = 64;
+  struct Entry {
+    Eigen::Vector3i index = Eigen::Vector3i::Zero();
+    const VoxelBlock* block = nullptr;
+    bool valid = false;
+  };
   const TsdfVolume::Impl& volume_;
-  const VoxelBlock* cached_ = nullptr;
-  Eigen::Vector3i cached_index_ = Eigen::Vector3i::Zero();
-  bool valid_ = false;
+  std::array<Entry, kCacheSlots> cache_{};
 };
 
 }  // namespace objscan::fusion

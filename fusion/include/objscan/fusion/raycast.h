@@ -4,6 +4,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <opencv2/core/mat.hpp>
 
 #include "objscan/core/intrinsics.h"
 #include "objscan/core/pose.h"
@@ -31,8 +32,15 @@ struct ModelMaps {
 /// positive-to-negative crossing, refined by trilinear interpolation. Normals are the
 /// normalised gradient of the interpolated distance. A ray that meets the back of a surface
 /// (negative first) or leaves the observed volume finds nothing.
+///
+/// `depth_hint` (CV_32FC1 metres, the image's size, 0 = none): when the maps are cast from the
+/// pose a depth image was just integrated at, the surface lies near its readings, so a ray with
+/// a reading starts one block plus the truncation in front of it (and marches the whole range if
+/// that start is behind a surface). A surface more than that in front of the reading, which the
+/// reading itself contradicts, is then not seen. About 3x faster.
 ModelMaps raycast(const TsdfVolume& volume, const Intrinsics& intrinsics, const Pose& T_W_C,
-                  float min_depth_m, float max_depth_m, bool with_colors = false);
+                  float min_depth_m, float max_depth_m, bool with_colors = false,
+                  const cv::Mat* depth_hint = nullptr);
 
 /// Every second pixel of every second row, with the intrinsics of the next pyramid level: the
 /// model for a coarser tracking level.
