@@ -1,0 +1,122 @@
+// `objscan fuse` end to end: a synthetic recording in, a mesh and a trajectory out; bad input
+// gives one error line and the documented exit code.
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "objscan/core/intrinsics.h"
+#include "objscan/core/ply_io.h"
+#include "objscan/core/trajectory.h"
+#include "test_support.h"
+
+namespace objscan {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::ProcessResult;
+using testing::TempDir;
+
+ProcessResult objscan(std::vector<std::string> args) {
+  args.insert(args.begin(), OBJSCAN_EXE);
+  return testing::runProcess(args);
+}
+
+/// A 320x240, 12-frame synthetic desk recording (TUM layout) under `dir`.
+fs::path syntheticRecording(const TempDir& dir) {
+  Intrinsics in;
+  in.width_px = 320;
+  in.height_px = 240;
+  in.fx_px = in.fy_px = 285.15;
+  in.cx_px = 159.5;
+  in.cy_px = 119.5;
+  writeIntrinsicsJson(dir / "small.json", in);
+  const fs::path scene = dir / "scene";
+  const ProcessResult r =
+      objscan({"synth", "--out", scene.string(), "--frames", "12", "--objects", "3", "--seed",
+               "2", "--intrinsics", (dir / "small.json").string()});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  return scene;
+}
+
+/// One line on stderr starting "objscan: error: " and holding `needle`; nothing on stdout.
+void expectOneErrorLine(const ProcessResult& r, int code, const std::string& needle) {
+  EXPECT_EQ(r.exit_code, code) << r.err;
+  EXPECT_EQ(r.out, "");
+  const std::vector<std::string> ls = testing::lines(r.err);
+  std::size_t errors = 0;
+  for (const std::string& l : ls) errors += l.rfind("objscan: error: ", 0) == 0 ? 1 : 0;
+  EXPECT_EQ(errors, 1u) << r.err;
+  EXPECT_NE(r.err.find(needle), std::string::npos) << r.err;
+}
+
+TEST(FuseCli, WritesAMeshAndATrajectoryThatReadBack) {
+  TempDir dir;
+  const fs::path scene = syntheticRecording(dir);
+  const fs::path out = dir / "out";
+  const ProcessResult r = objscan({"fuse", scene.string(), "--out", out.string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("12 read, 12 fused, 0 lost"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("ATE"), std::string::npos) << r.out;
+  const TriangleMesh mesh = readPly(out / "mesh.ply");
+  EXPECT_GT(mesh.triangles.size(), 1000u);
+  EXPECT_TRUE(mesh.hasNormals());
+  EXPECT_TRUE(mesh.hasColors());
+  EXPECT_EQ(readTumTrajectory(out / "trajectory.txt").size(), 12u);
+  // No temporary files are left beside the outputs.
+  std::size_t files = 0;
+  for ([[maybe_unused]] const auto& e : fs::directory_iterator(out)) ++files;
+  EXPECT_EQ(files, 2u);
+}
+
+TEST(FuseCli, GivenPosesAndFrameSelection) {
+  TempDir dir;
+  const fs::path scene = syntheticRecording(dir);
+  const ProcessResult r = objscan({"fuse", scene.string(), "--out", (dir / "out").string(),
+                                   "--poses", "groundtruth", "--every", "3", "--no-color"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("4 read, 4 fused"), std::string::npos) << r.out;
+  EXPECT_FALSE(readPly(dir / "out" / "mesh.ply").hasColors());
+}
+
+TEST(FuseCli, ASourceWithoutUsableDepthIsOneErrorLine) {
+  TempDir dir;
+  const fs::path scene = syntheticRecording(dir);
+  for (const auto& e : fs::directory_iterator(scene / "depth")) {
+    cv::imwrite(e.path().string(), cv::Mat(240, 320, CV_16UC1, cv::Scalar(0)));
+  }
+  expectOneErrorLine(objscan({"fuse", scene.string(), "--out", (dir / "out").string()}), 2,
+                     "nothing to fuse");
+  EXPECT_FALSE(fs::exists(dir / "out" / "mesh.ply"));
+}
+
+TEST(FuseCli, BadSettingsAndSourcesAreOneErrorLine) {
+  TempDir dir;
+  const fs::path scene = syntheticRecording(dir);
+  const std::string out = (dir / "out").string();
+  expectOneErrorLine(objscan({"fuse", scene.string(), "--out", out, "--voxel-size", "0"}), 2,
+                     "voxel size");
+  expectOneErrorLine(objscan({"fuse", scene.string(), "--out", out, "--truncation", "0.001"}),
+                     2, "truncation");
+  expectOneErrorLine(objscan({"fuse", (dir / "missing").string(), "--out", out}), 2, "missing");
+  expectOneErrorLine(
+      objscan({"fuse", scene.string(), "--out", out, "--poses", (dir / "none.txt").string()}), 2,
+      "none.txt");
+  // Intrinsics for another image size.
+  writeIntrinsicsJson(dir / "vga.json", Intrinsics::xtionDefault());
+  expectOneErrorLine(objscan({"fuse", scene.string(), "--out", out, "--intrinsics",
+                              (dir / "vga.json").string()}),
+                     2, "640x480");
+  // An output folder that cannot be made: a file is in the way.
+  testing::writeBytes(dir / "file", "x");
+  expectOneErrorLine(objscan({"fuse", scene.string(), "--out", (dir / "file").string()}), 1,
+                     "output folder");
+}
+
+}  // namespace
+}  // namespace objscan
