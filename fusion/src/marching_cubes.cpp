@@ -108,7 +108,7 @@ struct CaseTable {
       }
     }
     // Corner 0 alone inside: the outward side faces (1, 1, 1).
-    const auto midpoint = [](int e) {
+    const auto midpoint = [](int e) -> Eigen::Vector3f {
       return 0.5f * (cornerOffset(kEdgeCorners[e][0]) + cornerOffset(kEdgeCorners[e][1]));
     };
     const Triangle& t = triangles[1].front();
