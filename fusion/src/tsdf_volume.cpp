@@ -130,23 +130,20 @@ std::size_t TsdfVolume::integrate(const cv::Mat& depth_m, const cv::Mat& color_r
           }
         }
       });
-  std::vector<VoxelBlock*> touched;
-  for (const KeySet& keys : local_keys) {
-    for (const std::uint64_t key : keys) {
-      auto [it, inserted] =
-          volume.map.try_emplace(key, static_cast<std::int32_t>(volume.blocks.size()));
-      if (inserted) {
-        volume.blocks.emplace_back();
-        volume.blocks.back().index = decodeBlockKey(key);
-      }
-    }
-  }
-  // Two threads may have seen the same block: collect each once.
+  // Two threads may have seen the same block: merge first, then allocate and collect each once
+  // (a deque keeps earlier blocks in place while new ones are appended).
   KeySet merged;
   for (const KeySet& keys : local_keys) merged.insert(keys.begin(), keys.end());
+  std::vector<VoxelBlock*> touched;
   touched.reserve(merged.size());
   for (const std::uint64_t key : merged) {
-    touched.push_back(&volume.blocks[static_cast<std::size_t>(volume.map.at(key))]);
+    auto [it, inserted] =
+        volume.map.try_emplace(key, static_cast<std::int32_t>(volume.blocks.size()));
+    if (inserted) {
+      volume.blocks.emplace_back();
+      volume.blocks.back().index = decodeBlockKey(key);
+    }
+    touched.push_back(&volume.blocks[static_cast<std::size_t>(it->second)]);
   }
 
   // 2. Update every voxel of those blocks that projects onto a reading.
