@@ -22,21 +22,27 @@ struct NormalEquations {
   Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
   Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
   std::size_t inliers = 0;
+  std::size_t candidates = 0;  ///< frame pixels visited that have a vertex and a normal
   double squared_residuals = 0.0;
 
   void add(const NormalEquations& o) {
     A += o.A;
     b += o.b;
     inliers += o.inliers;
+    candidates += o.candidates;
     squared_residuals += o.squared_residuals;
   }
 };
 
+/// Sums over every `stride`-th pixel of every `stride`-th row of `frame`, each associated with
+/// the model pixel it projects to (the model may have another resolution than the frame).
 NormalEquations accumulate(const DepthLevel& frame, const ModelMaps& model, const Pose& T_W_C,
-                           const TrackingConfig& config) {
+                           const TrackingConfig& config, int stride) {
   const Eigen::Matrix3f R = T_W_C.linear();
   const Eigen::Vector3f t = T_W_C.translation();
-  const Pose T_M_W = model.T_W_C.inverse();  // world to the model's camera
+  const Pose T_M_C = model.T_W_C.inverse() * T_W_C;  // the frame's camera to the model's
+  const Eigen::Matrix3f R_MC = T_M_C.linear();
+  const Eigen::Vector3f t_MC = T_M_C.translation();
   const Intrinsics& in = model.intrinsics;
   const float fx = static_cast<float>(in.fx_px), fy = static_cast<float>(in.fy_px);
   const float cx = static_cast<float>(in.cx_px), cy = static_cast<float>(in.cy_px);
@@ -45,19 +51,21 @@ NormalEquations accumulate(const DepthLevel& frame, const ModelMaps& model, cons
   const float huber = config.huber_m;
   const int width = frame.depth_m.cols;
   return tbb::parallel_reduce(
-      tbb::blocked_range<int>(0, frame.depth_m.rows), NormalEquations(),
+      tbb::blocked_range<int>(0, (frame.depth_m.rows + stride - 1) / stride), NormalEquations(),
       [&](const tbb::blocked_range<int>& rows, NormalEquations sum) {
         // Upper triangle of J^T W J (21 values) and J^T W r (6), single precision within a
         // row, double across rows. Written out: Eigen's 6x6 rank update is not inlined.
         float acc[27];
-        for (int v = rows.begin(); v != rows.end(); ++v) {
+        for (int row = rows.begin(); row != rows.end(); ++row) {
+          const int v = row * stride;
           std::fill(std::begin(acc), std::end(acc), 0.0f);
-          for (int u = 0; u < width; ++u) {
+          for (int u = 0; u < width; u += stride) {
             const std::size_t i = static_cast<std::size_t>(v) * width + u;
             const Eigen::Vector3f& n_C = frame.normals_C[i];
             if (!n_C.allFinite()) continue;
-            const Eigen::Vector3f p_W = R * frame.vertices_C[i] + t;
-            const Eigen::Vector3f p_M = T_M_W * p_W;
+            ++sum.candidates;
+            const Eigen::Vector3f& p_C = frame.vertices_C[i];
+            const Eigen::Vector3f p_M = R_MC * p_C + t_MC;
             if (p_M.z() <= 0.0f) continue;
             const int mu = roundToInt(fx * p_M.x() / p_M.z() + cx);
             const int mv = roundToInt(fy * p_M.y() / p_M.z() + cy);
@@ -66,6 +74,7 @@ NormalEquations accumulate(const DepthLevel& frame, const ModelMaps& model, cons
             const Eigen::Vector3f& m = model.vertices_W[j];
             const Eigen::Vector3f& nm = model.normals_W[j];
             if (!nm.allFinite()) continue;
+            const Eigen::Vector3f p_W = R * p_C + t;
             const Eigen::Vector3f d = p_W - m;
             if (d.squaredNorm() > max_d2) continue;
             if ((R * n_C).dot(nm) < min_cos) continue;
@@ -123,6 +132,9 @@ void TrackingConfig::validate() const {
       !positive(max_rmse_m) || !positive(max_translation_m) || !positive(max_rotation_rad)) {
     throw std::invalid_argument("ICP distances, angles and thresholds must be positive");
   }
+  if (finest_level_stride < 1 || finest_level_stride > 4) {
+    throw std::invalid_argument("the finest level's pixel stride must be 1 to 4");
+  }
   if (!(min_inlier_fraction >= 0.0f && min_inlier_fraction < 1.0f)) {
     throw std::invalid_argument("the minimum inlier share must be in [0, 1)");
   }
@@ -131,20 +143,39 @@ void TrackingConfig::validate() const {
 TrackingResult trackFrame(const DepthPyramid& frame, const ModelMaps& model,
                           const Pose& initial_T_W_C, const TrackingConfig& config) {
   const int levels = std::min<int>(static_cast<int>(frame.levels.size()), 3);
-  std::vector<ModelMaps> model_levels;
-  model_levels.reserve(static_cast<std::size_t>(levels));
-  model_levels.push_back(model);
-  for (int l = 1; l < levels; ++l) model_levels.push_back(halfResolution(model_levels.back()));
+  if (levels == 0 || model.intrinsics.width_px <= 0) {
+    throw std::invalid_argument("trackFrame: an empty frame pyramid or model");
+  }
+  // The model may be cast at a coarser resolution than the frame's finest level: frame level l
+  // is matched against model level max(0, l - offset), where the model is 2^offset smaller.
+  int offset = 0;
+  while ((frame.levels.front().intrinsics.width_px >> offset) > model.intrinsics.width_px) {
+    ++offset;
+  }
+  std::vector<ModelMaps> coarser;  // model levels 1, 2, ... (level 0 is `model` itself)
+  coarser.reserve(static_cast<std::size_t>(levels));
+  for (int l = 1; l < levels - offset; ++l) {
+    coarser.push_back(halfResolution(l == 1 ? model : coarser.back()));
+  }
+  const auto modelFor = [&](int frame_level) -> const ModelMaps& {
+    const int l = std::max(0, frame_level - offset);
+    return l == 0 ? model : coarser[static_cast<std::size_t>(l) - 1];
+  };
+  const auto strideFor = [&](int frame_level) {
+    return frame_level == 0 ? config.finest_level_stride : 1;
+  };
 
   TrackingResult result;
   Pose T = initial_T_W_C;
   NormalEquations last;
+  bool last_at_finest = false;  // whether `last` was summed at level 0
   bool solved = true;
   for (int level = levels - 1; level >= 0 && solved; --level) {
     const DepthLevel& f = frame.levels[static_cast<std::size_t>(level)];
-    const ModelMaps& m = model_levels[static_cast<std::size_t>(level)];
+    const ModelMaps& m = modelFor(level);
     for (int it = 0; it < config.iterations[static_cast<std::size_t>(level)]; ++it) {
-      last = accumulate(f, m, T, config);
+      last = accumulate(f, m, T, config, strideFor(level));
+      last_at_finest = level == 0;
       if (last.inliers < 6) {
         solved = false;
         break;
@@ -163,13 +194,16 @@ TrackingResult trackFrame(const DepthPyramid& frame, const ModelMaps& model,
       if (x.head<3>().norm() < 1e-4 && x.tail<3>().norm() < 1e-4) break;
     }
   }
-  // The statistics of the pose reached, at the finest level.
-  last = accumulate(frame.levels.front(), model_levels.front(), T, config);
+  // The statistics judge the pose the last finest-level step started from: that step is a
+  // refinement of at most a few millimetres, and summing all pixels once more would cost a fifth
+  // of the tracking time. Without a finest-level step, they are summed for the pose reached.
+  if (!last_at_finest)
+    last = accumulate(frame.levels.front(), modelFor(0), T, config, strideFor(0));
   result.T_W_C = T;
   result.inliers = last.inliers;
-  const std::size_t valid = frame.levels.front().valid_pixels;
   result.inlier_fraction =
-      valid > 0 ? static_cast<float>(last.inliers) / static_cast<float>(valid) : 0.0f;
+      last.candidates > 0 ? static_cast<float>(last.inliers) / static_cast<float>(last.candidates)
+                          : 0.0f;
   result.rmse_m = last.inliers > 0
                       ? static_cast<float>(std::sqrt(last.squared_residuals / last.inliers))
                       : 0.0f;

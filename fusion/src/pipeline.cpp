@@ -16,12 +16,26 @@ double msSince(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
 
+/// Every 2^level-th pixel of every 2^level-th row: where a ray of that level starts its search.
+void subsample(const cv::Mat& depth, int level, cv::Mat* out) {
+  const int step = 1 << level;
+  out->create(depth.rows / step, depth.cols / step, CV_32FC1);
+  for (int v = 0; v < out->rows; ++v) {
+    const float* in = depth.ptr<float>(v * step);
+    float* o = out->ptr<float>(v);
+    for (int u = 0; u < out->cols; ++u) o[u] = in[u * step];
+  }
+}
+
 }  // namespace
 
 void FusionConfig::validate() const {
   preprocess.validate();
   volume.validate();
   tracking.validate();
+  if (model_level < 0 || model_level >= preprocess.pyramid_levels || model_level > 2) {
+    throw std::invalid_argument("the model's pyramid level must be 0 to 2 and within the pyramid");
+  }
   if (!(min_valid_fraction >= 0.0f && min_valid_fraction < 1.0f)) {
     throw std::invalid_argument("the minimum share of valid depth must be in [0, 1)");
   }
@@ -53,7 +67,8 @@ FrameOutcome Fusion::process(const RgbdFrame& frame, const std::optional<Pose>& 
   out.T_W_C = last_good_;
 
   auto start = Clock::now();
-  const cv::Mat depth = clipDepth(frame.depth_m, config_.preprocess);
+  clipDepth(frame.depth_m, config_.preprocess, &clipped_);
+  const cv::Mat& depth = clipped_;
   const double valid = static_cast<double>(cv::countNonZero(depth));
   if (valid < config_.min_valid_fraction * static_cast<double>(depth.total()) || valid == 0.0) {
     out.status = FrameStatus::kNoDepth;
@@ -73,15 +88,16 @@ FrameOutcome Fusion::process(const RgbdFrame& frame, const std::optional<Pose>& 
     out.status = FrameStatus::kFirst;
     out.timings.preprocess_ms = msSince(start);
   } else {
-    const DepthPyramid pyramid = buildPyramid(depth, intrinsics_, config_.preprocess);
+    buildPyramid(depth, intrinsics_, config_.preprocess, &pyramid_);
     out.timings.preprocess_ms = msSince(start);
     start = Clock::now();
     if (!model_current_) {
-      model_ = raycast(volume_, intrinsics_, last_good_, config_.preprocess.min_depth_m,
-                       config_.preprocess.max_depth_m);
+      raycast(volume_, levelIntrinsics(intrinsics_, config_.model_level), last_good_,
+              config_.preprocess.min_depth_m, config_.preprocess.max_depth_m, false, nullptr,
+              &model_);
       model_current_ = true;
     }
-    out.tracking = trackFrame(pyramid, model_, last_good_, config_.tracking);
+    out.tracking = trackFrame(pyramid_, model_, last_good_, config_.tracking);
     out.timings.track_ms = msSince(start);
     if (!out.tracking.ok) {
       out.status = FrameStatus::kLost;
@@ -103,8 +119,10 @@ FrameOutcome Fusion::process(const RgbdFrame& frame, const std::optional<Pose>& 
   if (!given_T_W_C) {
     // The model for the next frame; with given poses it is cast only when tracking needs it.
     start = Clock::now();
-    model_ = raycast(volume_, intrinsics_, pose, config_.preprocess.min_depth_m,
-                     config_.preprocess.max_depth_m, false, &depth);
+    if (config_.model_level > 0) subsample(depth, config_.model_level, &hint_);
+    raycast(volume_, levelIntrinsics(intrinsics_, config_.model_level), pose,
+            config_.preprocess.min_depth_m, config_.preprocess.max_depth_m, false,
+            config_.model_level > 0 ? &hint_ : &depth, &model_);
     model_current_ = true;
     out.timings.raycast_ms = msSince(start);
   }

@@ -7,6 +7,7 @@
 #include <string>
 
 #include <tbb/blocked_range.h>
+#include <tbb/combinable.h>
 #include <tbb/parallel_for.h>
 #include <Eigen/Geometry>
 #include <opencv2/imgproc.hpp>
@@ -29,14 +30,16 @@ void forEachRow(int rows, const Body& body) {
   });
 }
 
-std::vector<Eigen::Vector3f> backProject(const cv::Mat& depth_m, const Intrinsics& in) {
-  std::vector<Eigen::Vector3f> vertices(depth_m.total());
+/// Fills `vertices` (resized; its memory reused from frame to frame) with the back-projected depth.
+void backProject(const cv::Mat& depth_m, const Intrinsics& in,
+                 std::vector<Eigen::Vector3f>* vertices) {
+  vertices->resize(depth_m.total());
   const float fx_inv = 1.0f / static_cast<float>(in.fx_px);
   const float fy_inv = 1.0f / static_cast<float>(in.fy_px);
   const float cx = static_cast<float>(in.cx_px), cy = static_cast<float>(in.cy_px);
   forEachRow(depth_m.rows, [&](int v) {
     const float* d = depth_m.ptr<float>(v);
-    Eigen::Vector3f* out = vertices.data() + static_cast<std::size_t>(v) * depth_m.cols;
+    Eigen::Vector3f* out = vertices->data() + static_cast<std::size_t>(v) * depth_m.cols;
     for (int u = 0; u < depth_m.cols; ++u) {
       const float z = d[u];
       out[u] = z > 0.0f ? Eigen::Vector3f((static_cast<float>(u) - cx) * z * fx_inv,
@@ -44,14 +47,41 @@ std::vector<Eigen::Vector3f> backProject(const cv::Mat& depth_m, const Intrinsic
                         : Eigen::Vector3f(kNaN, kNaN, kNaN);
     }
   });
-  return vertices;
+}
+
+/// computeNormals into `normals` (resized, memory reused); returns how many are valid.
+std::size_t normalsInto(const std::vector<Eigen::Vector3f>& vertices_C, int width, int height,
+                        std::vector<Eigen::Vector3f>* normals) {
+  normals->resize(vertices_C.size());
+  tbb::combinable<std::size_t> valid([] { return std::size_t{0}; });
+  forEachRow(height, [&](int v) {
+    Eigen::Vector3f* out = normals->data() + static_cast<std::size_t>(v) * width;
+    std::fill(out, out + width, Eigen::Vector3f::Constant(kNaN));
+    if (v + 1 == height) return;
+    std::size_t& count = valid.local();
+    for (int u = 0; u + 1 < width; ++u) {
+      const std::size_t i = static_cast<std::size_t>(v) * width + u;
+      const Eigen::Vector3f& p = vertices_C[i];
+      const Eigen::Vector3f& right = vertices_C[i + 1];
+      const Eigen::Vector3f& down = vertices_C[i + width];
+      if (!p.allFinite() || !right.allFinite() || !down.allFinite()) continue;
+      Eigen::Vector3f n = (right - p).cross(down - p);
+      const float norm = n.norm();
+      if (!(norm > 0.0f)) continue;
+      n /= norm;
+      out[u] = n.dot(p) > 0.0f ? Eigen::Vector3f(-n) : n;
+      ++count;
+    }
+  });
+  return valid.combine([](std::size_t a, std::size_t b) { return a + b; });
 }
 
 /// Half resolution: each pixel averages the valid pixels of its 2x2 block that lie within
 /// `band_m` of the nearest of them (so that a block straddling an edge does not average the
 /// foreground with the background).
-cv::Mat halfResolution(const cv::Mat& depth_m, float band_m) {
-  cv::Mat half(depth_m.rows / 2, depth_m.cols / 2, CV_32FC1);
+void halfResolution(const cv::Mat& depth_m, float band_m, cv::Mat* half_out) {
+  half_out->create(depth_m.rows / 2, depth_m.cols / 2, CV_32FC1);
+  cv::Mat& half = *half_out;
   forEachRow(half.rows, [&](int v) {
     const float* a = depth_m.ptr<float>(2 * v);
     const float* b = depth_m.ptr<float>(2 * v + 1);
@@ -73,7 +103,6 @@ cv::Mat halfResolution(const cv::Mat& depth_m, float band_m) {
       out[u] = n > 0 ? sum / static_cast<float>(n) : 0.0f;
     }
   });
-  return half;
 }
 
 }  // namespace
@@ -91,18 +120,24 @@ void PreprocessConfig::validate() const {
   require(pyramid_levels >= 1 && pyramid_levels <= 5, "the pyramid must have 1 to 5 levels");
 }
 
-cv::Mat clipDepth(const cv::Mat& depth_m, const PreprocessConfig& config) {
+void clipDepth(const cv::Mat& depth_m, const PreprocessConfig& config, cv::Mat* clipped) {
   if (depth_m.type() != CV_32FC1) throw std::invalid_argument("depth must be CV_32FC1 metres");
-  cv::Mat out(depth_m.size(), CV_32FC1);
+  if (clipped->data == depth_m.data) throw std::invalid_argument("clipDepth cannot work in place");
+  clipped->create(depth_m.size(), CV_32FC1);
   forEachRow(depth_m.rows, [&](int v) {
     const float* in = depth_m.ptr<float>(v);
-    float* o = out.ptr<float>(v);
+    float* o = clipped->ptr<float>(v);
     for (int u = 0; u < depth_m.cols; ++u) {
       const float z = in[u];
       // NaN fails both comparisons and is dropped with the rest.
       o[u] = z >= config.min_depth_m && z <= config.max_depth_m ? z : 0.0f;
     }
   });
+}
+
+cv::Mat clipDepth(const cv::Mat& depth_m, const PreprocessConfig& config) {
+  cv::Mat out;
+  clipDepth(depth_m, config, &out);
   return out;
 }
 
@@ -120,48 +155,43 @@ Intrinsics levelIntrinsics(const Intrinsics& full, int level) {
 
 std::vector<Eigen::Vector3f> computeNormals(const std::vector<Eigen::Vector3f>& vertices_C,
                                             int width, int height) {
-  std::vector<Eigen::Vector3f> normals(vertices_C.size(), Eigen::Vector3f::Constant(kNaN));
-  forEachRow(height - 1, [&](int v) {
-    for (int u = 0; u + 1 < width; ++u) {
-      const std::size_t i = static_cast<std::size_t>(v) * width + u;
-      const Eigen::Vector3f& p = vertices_C[i];
-      const Eigen::Vector3f& right = vertices_C[i + 1];
-      const Eigen::Vector3f& down = vertices_C[i + width];
-      if (!p.allFinite() || !right.allFinite() || !down.allFinite()) continue;
-      Eigen::Vector3f n = (right - p).cross(down - p);
-      const float norm = n.norm();
-      if (!(norm > 0.0f)) continue;
-      n /= norm;
-      normals[i] = n.dot(p) > 0.0f ? Eigen::Vector3f(-n) : n;
-    }
-  });
+  std::vector<Eigen::Vector3f> normals;
+  normalsInto(vertices_C, width, height, &normals);
   return normals;
+}
+
+void buildPyramid(const cv::Mat& clipped_depth_m, const Intrinsics& intrinsics,
+                  const PreprocessConfig& config, DepthPyramid* pyramid) {
+  pyramid->levels.resize(static_cast<std::size_t>(config.pyramid_levels));
+  for (int level = 0; level < config.pyramid_levels; ++level) {
+    DepthLevel& l = pyramid->levels[static_cast<std::size_t>(level)];
+    l.intrinsics = levelIntrinsics(intrinsics, level);
+    if (level > 0) {
+      halfResolution(pyramid->levels[static_cast<std::size_t>(level) - 1].depth_m,
+                     3.0f * config.bilateral_sigma_depth_m, &l.depth_m);
+    } else if (config.bilateral_radius_px > 0) {
+      // OpenCV's filter weighs neighbours by exp(-dz^2 / 2 sigma^2): a missing reading (0) next
+      // to a surface metres away gets weight ~0 and stays 0, and does not pull valid pixels to 0.
+      cv::bilateralFilter(clipped_depth_m, l.depth_m, 2 * config.bilateral_radius_px + 1,
+                          config.bilateral_sigma_depth_m, config.bilateral_sigma_space_px);
+      // Keep holes holes: the filter may spread a little depth into a missing pixel.
+      forEachRow(l.depth_m.rows, [&](int v) {
+        const float* in = clipped_depth_m.ptr<float>(v);
+        float* out = l.depth_m.ptr<float>(v);
+        for (int u = 0; u < l.depth_m.cols; ++u) out[u] = in[u] == 0.0f ? 0.0f : out[u];
+      });
+    } else {
+      clipped_depth_m.copyTo(l.depth_m);
+    }
+    backProject(l.depth_m, l.intrinsics, &l.vertices_C);
+    l.valid_pixels = normalsInto(l.vertices_C, l.depth_m.cols, l.depth_m.rows, &l.normals_C);
+  }
 }
 
 DepthPyramid buildPyramid(const cv::Mat& clipped_depth_m, const Intrinsics& intrinsics,
                           const PreprocessConfig& config) {
   DepthPyramid pyramid;
-  cv::Mat depth = clipped_depth_m;
-  if (config.bilateral_radius_px > 0) {
-    // OpenCV's filter weighs neighbours by exp(-dz^2 / 2 sigma^2): a missing reading (0) next to
-    // a surface metres away gets weight ~0 and stays 0, and does not pull valid pixels to 0.
-    cv::Mat filtered;
-    cv::bilateralFilter(depth, filtered, 2 * config.bilateral_radius_px + 1,
-                        config.bilateral_sigma_depth_m, config.bilateral_sigma_space_px);
-    // Keep holes holes: the filter may spread a little depth into a missing pixel.
-    filtered.setTo(0.0f, depth == 0.0f);
-    depth = filtered;
-  }
-  for (int level = 0; level < config.pyramid_levels; ++level) {
-    if (level > 0) depth = halfResolution(depth, 3.0f * config.bilateral_sigma_depth_m);
-    DepthLevel l;
-    l.intrinsics = levelIntrinsics(intrinsics, level);
-    l.depth_m = depth;
-    l.vertices_C = backProject(depth, l.intrinsics);
-    l.normals_C = computeNormals(l.vertices_C, depth.cols, depth.rows);
-    for (const Eigen::Vector3f& n : l.normals_C) l.valid_pixels += n.allFinite() ? 1 : 0;
-    pyramid.levels.push_back(std::move(l));
-  }
+  buildPyramid(clipped_depth_m, intrinsics, config, &pyramid);
   return pyramid;
 }
 

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
 #include <optional>
 #include <stdexcept>
@@ -109,19 +110,31 @@ RangeImage projectBlocks(const TsdfVolume::Impl& volume, const Intrinsics& in, c
 
 }  // namespace
 
-ModelMaps raycast(const TsdfVolume& volume_in, const Intrinsics& in, const Pose& T_W_C,
+ModelMaps raycast(const TsdfVolume& volume, const Intrinsics& in, const Pose& T_W_C,
                   float min_depth_m, float max_depth_m, bool with_colors,
                   const cv::Mat* depth_hint) {
+  ModelMaps maps;
+  raycast(volume, in, T_W_C, min_depth_m, max_depth_m, with_colors, depth_hint, &maps);
+  return maps;
+}
+
+void raycast(const TsdfVolume& volume_in, const Intrinsics& in, const Pose& T_W_C,
+             float min_depth_m, float max_depth_m, bool with_colors, const cv::Mat* depth_hint,
+             ModelMaps* maps_out) {
   const TsdfVolume::Impl& volume = volume_in.impl();
   const float voxel = volume.voxel_size_m;
   const float trunc = volume.truncation_m;
-  ModelMaps maps;
+  ModelMaps& maps = *maps_out;
   maps.intrinsics = in;
   maps.T_W_C = T_W_C;
   const std::size_t n = static_cast<std::size_t>(in.width_px) * in.height_px;
   maps.vertices_W.assign(n, Eigen::Vector3f::Constant(kNaN));
   maps.normals_W.assign(n, Eigen::Vector3f::Constant(kNaN));
-  if (with_colors) maps.colors.assign(n, Rgb8::Zero());
+  if (with_colors) {
+    maps.colors.assign(n, Rgb8::Zero());
+  } else {
+    maps.colors.clear();
+  }
   const RangeImage range = projectBlocks(volume, in, T_W_C, min_depth_m, max_depth_m);
 
   const Eigen::Matrix3f R_WC = T_W_C.linear();
@@ -129,7 +142,7 @@ ModelMaps raycast(const TsdfVolume& volume_in, const Intrinsics& in, const Pose&
   const float fx = static_cast<float>(in.fx_px), fy = static_cast<float>(in.fy_px);
   const float cx = static_cast<float>(in.cx_px), cy = static_cast<float>(in.cy_px);
   const float inv_voxel = 1.0f / voxel;
-  const float hint_margin_m = 1.5f * trunc;
+  constexpr int kMaxBackSteps = 8;
   if (depth_hint && (depth_hint->type() != CV_32FC1 || depth_hint->cols != in.width_px ||
                      depth_hint->rows != in.height_px)) {
     throw std::invalid_argument("raycast: the depth hint must be CV_32FC1 of the image's size");
@@ -204,17 +217,47 @@ ModelMaps raycast(const TsdfVolume& volume_in, const Intrinsics& in, const Pose&
               }
               return false;
             };
-            float bracket = 0.0f, prev_z = 0.0f;
-            bool back_face = false, found = false;
             // Cast right after integrating a depth image from the same pose, the surface is
-            // near that image's reading: start a margin in front of it. If that start lies
-            // behind a surface, march the whole range instead.
+            // near that image's reading. The distance stored at the reading says on which side
+            // and about how far: search from there. Returns 1 when bracketed, 0 when the ray
+            // leaves the observed band first, -1 to fall back to marching.
+            const auto searchFromHint = [&](float hint, float* bracket, float* before) -> int {
+              const Eigen::Vector3f q = q0 + hint * dq;
+              const Voxel* vox = reader.get(
+                  Eigen::Vector3i(roundToInt(q.x()), roundToInt(q.y()), roundToInt(q.z())));
+              if (!vox || vox->weight <= 0.0f) return -1;
+              if (vox->tsdf >= 0.0f) {  // in front of the surface: march on from here
+                bool back_face = false;
+                return march(hint, z_end, bracket, before, &back_face) ? 1 : 0;
+              }
+              // Behind it: step back toward the camera until the distance turns positive.
+              float z_neg = hint, f_neg = vox->tsdf;
+              for (int step = 0; step < kMaxBackSteps; ++step) {
+                const float z = z_neg - std::max(min_step_z, -0.8f * f_neg * trunc / metres_per_z);
+                if (z < z_begin) return -1;
+                const Eigen::Vector3f qb = q0 + z * dq;
+                const Voxel* b = reader.get(
+                    Eigen::Vector3i(roundToInt(qb.x()), roundToInt(qb.y()), roundToInt(qb.z())));
+                if (!b || b->weight <= 0.0f) return -1;
+                if (b->tsdf >= 0.0f) {
+                  *bracket = z + (z_neg - z) * b->tsdf / (b->tsdf - f_neg);
+                  *before = z;
+                  return 1;
+                }
+                z_neg = z;
+                f_neg = b->tsdf;
+              }
+              return -1;
+            };
+            float bracket = 0.0f, prev_z = 0.0f;
+            bool found = false;
             const float hint = depth_hint ? depth_hint->ptr<float>(v)[u] : 0.0f;
-            if (hint > 0.0f) {
-              found = march(std::max(z_begin, hint - hint_margin_m), z_end, &bracket, &prev_z,
-                            &back_face);
-            }
-            if (!(hint > 0.0f) || back_face) {
+            const int hinted =
+                hint > z_begin && hint < z_end ? searchFromHint(hint, &bracket, &prev_z) : -1;
+            if (hinted >= 0) {
+              found = hinted == 1;
+            } else {
+              bool back_face = false;
               found = march(z_begin, z_end, &bracket, &prev_z, &back_face);
             }
             if (!found) continue;
@@ -243,7 +286,6 @@ ModelMaps raycast(const TsdfVolume& volume_in, const Intrinsics& in, const Pose&
         }
       });
   maps.hits = hits.combine([](std::size_t a, std::size_t b) { return a + b; });
-  return maps;
 }
 
 ModelMaps halfResolution(const ModelMaps& maps) {

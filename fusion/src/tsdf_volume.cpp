@@ -151,6 +151,7 @@ std::size_t TsdfVolume::integrate(const cv::Mat& depth_m, const cv::Mat& color_r
   const Eigen::Vector3f t_CW = -(R_CW * t_WC);
   const Eigen::Vector3f step_x_C = R_CW.col(0) * voxel;
   const float max_weight = config_.max_weight;
+  const float inv_trunc = 1.0f / trunc;
   const bool has_color = !color_rgb.empty();
   volume.has_colors = volume.has_colors || has_color;
   tbb::parallel_for(
@@ -175,16 +176,19 @@ std::size_t TsdfVolume::integrate(const cv::Mat& depth_m, const cv::Mat& color_r
                 const float sdf = d - p_C.z();
                 if (sdf < -trunc) continue;
                 Voxel& vox = row[x];
-                const float tsdf = std::min(1.0f, sdf / trunc);
+                const float tsdf = std::min(1.0f, sdf * inv_trunc);
                 const float w = vox.weight;
                 const float w_new = std::min(w + 1.0f, max_weight);
                 vox.tsdf = (vox.tsdf * w + tsdf) / (w + 1.0f);
                 if (has_color && sdf < trunc) {
                   const auto* c = color_rgb.ptr<std::uint8_t>(v) + 3 * u;
                   const float cw = vox.color_weight;
+                  const float inv = 1.0f / (cw + 1.0f);
+                  // Rounded by +0.5 and truncation (the value is in [0, 255]): lround is a
+                  // library call, three per voxel.
                   const auto blend = [&](std::uint8_t old, std::uint8_t obs) {
-                    return static_cast<std::uint8_t>(std::lround(
-                        (static_cast<float>(old) * cw + static_cast<float>(obs)) / (cw + 1.0f)));
+                    return static_cast<std::uint8_t>(
+                        (static_cast<float>(old) * cw + static_cast<float>(obs)) * inv + 0.5f);
                   };
                   vox.r = blend(vox.r, c[0]);
                   vox.g = blend(vox.g, c[1]);

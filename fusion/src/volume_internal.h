@@ -106,10 +106,24 @@ class VoxelReader {
     const float tx = q.x() - static_cast<float>(x0), ty = q.y() - static_cast<float>(y0),
                 tz = q.z() - static_cast<float>(z0);
     float c[8];
-    for (int i = 0; i < 8; ++i) {
-      const Voxel* v = get(Eigen::Vector3i(x0 + (i & 1), y0 + ((i >> 1) & 1), z0 + ((i >> 2) & 1)));
-      if (!v || v->weight <= 0.0f) return false;
-      c[i] = v->tsdf;
+    if ((x0 & 7) != 7 && (y0 & 7) != 7 && (z0 & 7) != 7) {
+      // All 8 voxels in one block (343 of 512 cells): one block look-up.
+      const VoxelBlock* b = block(blockOf(Eigen::Vector3i(x0, y0, z0)));
+      if (!b) return false;
+      const Voxel* v0 = &b->voxels[static_cast<std::size_t>(localIndex(x0 & 7, y0 & 7, z0 & 7))];
+      for (int i = 0; i < 8; ++i) {
+        const Voxel& v =
+            v0[(i & 1) + kBlockSide * ((i >> 1) & 1) + kBlockSide * kBlockSide * ((i >> 2) & 1)];
+        if (v.weight <= 0.0f) return false;
+        c[i] = v.tsdf;
+      }
+    } else {
+      for (int i = 0; i < 8; ++i) {
+        const Voxel* v =
+            get(Eigen::Vector3i(x0 + (i & 1), y0 + ((i >> 1) & 1), z0 + ((i >> 2) & 1)));
+        if (!v || v->weight <= 0.0f) return false;
+        c[i] = v->tsdf;
+      }
     }
     const float x00 = c[0] + tx * (c[1] - c[0]), x10 = c[2] + tx * (c[3] - c[2]);
     const float x01 = c[4] + tx * (c[5] - c[4]), x11 = c[6] + tx * (c[7] - c[6]);

@@ -22,6 +22,8 @@ struct FusionConfig {
   TrackingConfig tracking;
   /// A frame with fewer valid depth readings than this share of its pixels is skipped.
   float min_valid_fraction = 0.01f;
+  /// The pyramid level the tracking model is cast at: 0 = the frame's resolution, 1 = half.
+  int model_level = 1;
   /// Throws std::invalid_argument naming the bad field.
   void validate() const;
 };
@@ -72,7 +74,8 @@ class Fusion {
   std::size_t framesProcessed() const { return processed_; }
   std::size_t framesLost() const { return lost_; }
   std::size_t framesSkipped() const { return skipped_; }
-  /// The model maps of the last good pose (for previews); empty before the first frame.
+  /// The model maps of the last good pose, at the resolution of config.model_level; empty before
+  /// the first frame.
   const ModelMaps& model() const { return model_; }
 
  private:
@@ -80,6 +83,9 @@ class Fusion {
   Intrinsics intrinsics_;
   TsdfVolume volume_;
   ModelMaps model_;
+  cv::Mat clipped_;             ///< this frame's clipped depth (buffer kept across frames)
+  cv::Mat hint_;                ///< clipped_ at the model's level, when that is not level 0
+  DepthPyramid pyramid_;        ///< this frame's tracking pyramid (buffers kept across frames)
   bool model_current_ = false;  ///< model_ was cast from last_good_
   Pose last_good_;
   Trajectory trajectory_;

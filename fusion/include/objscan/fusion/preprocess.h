@@ -47,12 +47,19 @@ struct DepthPyramid {
 /// `depth_m` (CV_32FC1, metres; 0 or NaN = no reading) with its readings outside
 /// [min_depth_m, max_depth_m], NaN and infinities set to 0. This is the depth that is integrated.
 cv::Mat clipDepth(const cv::Mat& depth_m, const PreprocessConfig& config);
+/// The same into `clipped` (reusing its memory when it has the right size; not depth_m itself).
+void clipDepth(const cv::Mat& depth_m, const PreprocessConfig& config, cv::Mat* clipped);
 
 /// The tracking pyramid of a clipped depth image: bilateral filter at level 0, then each level
 /// averages the 2x2 pixels of the one below that lie within 3 sigma_depth of the nearest of them.
 /// Intrinsics of level l: focal lengths / 2^l, principal point (c + 0.5) / 2^l - 0.5.
 DepthPyramid buildPyramid(const cv::Mat& clipped_depth_m, const Intrinsics& intrinsics,
                           const PreprocessConfig& config);
+
+/// The same into `pyramid`, reusing its images and maps: at 640x480 a pyramid is 10 MB, and
+/// allocating it afresh every frame costs page faults.
+void buildPyramid(const cv::Mat& clipped_depth_m, const Intrinsics& intrinsics,
+                  const PreprocessConfig& config, DepthPyramid* pyramid);
 
 /// Intrinsics of a pyramid level (see buildPyramid).
 Intrinsics levelIntrinsics(const Intrinsics& full, int level);

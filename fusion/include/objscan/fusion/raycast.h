@@ -34,13 +34,20 @@ struct ModelMaps {
 /// (negative first) or leaves the observed volume finds nothing.
 ///
 /// `depth_hint` (CV_32FC1 metres, the image's size, 0 = none): when the maps are cast from the
-/// pose a depth image was just integrated at, the surface lies near its readings, so a ray with
-/// a reading starts one block plus the truncation in front of it (and marches the whole range if
-/// that start is behind a surface). A surface more than that in front of the reading, which the
-/// reading itself contradicts, is then not seen. About 3x faster.
+/// pose a depth image was just integrated at, the surface lies near its readings. A ray with a
+/// reading then starts at it and reads the stored distance there: in front of the surface it
+/// marches on; behind it, it steps back toward the camera by the stored distance until the sign
+/// turns. Where the reading's voxel was never observed, the ray marches the whole range. The
+/// crossing found is the one nearest the reading, which is the first along the ray unless the
+/// volume holds a surface in front of the reading that the reading itself contradicts.
 ModelMaps raycast(const TsdfVolume& volume, const Intrinsics& intrinsics, const Pose& T_W_C,
                   float min_depth_m, float max_depth_m, bool with_colors = false,
                   const cv::Mat* depth_hint = nullptr);
+
+/// The same into `maps`, reusing its memory (two 3.7 MB maps at 640x480, cast every frame).
+void raycast(const TsdfVolume& volume, const Intrinsics& intrinsics, const Pose& T_W_C,
+             float min_depth_m, float max_depth_m, bool with_colors, const cv::Mat* depth_hint,
+             ModelMaps* maps);
 
 /// Every second pixel of every second row, with the intrinsics of the next pyramid level: the
 /// model for a coarser tracking level.
