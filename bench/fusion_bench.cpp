@@ -215,9 +215,10 @@ FusionBenchResult runObjscan(const LoadedInput& loaded, const Settings& settings
   // inside their integrate calls).
   objscan::fusion::TsdfVolume volume(config.volume);
   double integrate_ms = 0.0;
+  cv::Mat clipped;
   for (std::size_t i = 0; i < n; ++i) {
     const auto t0 = Clock::now();
-    const cv::Mat clipped = objscan::fusion::clipDepth(in.depth_m[i], config.preprocess);
+    objscan::fusion::clipDepth(in.depth_m[i], config.preprocess, &clipped);
     volume.integrate(clipped, in.color_rgb[i], loaded.intrinsics, poseAt(in, i));
     integrate_ms += msSince(t0);
   }

@@ -169,7 +169,10 @@ TEST(Raycast, FindsThePlaneAtItsDepthFacingTheCamera) {
   TsdfVolume volume(VolumeConfig{});
   const cv::Mat depth = renderDepth(scene, in, Pose::Identity());
   volume.integrate(depth, {}, in, Pose::Identity());
-  for (const cv::Mat* hint : {static_cast<const cv::Mat*>(nullptr), &depth}) {
+  // No hint; the integrated depth; hints 2 cm behind and in front of the surface (the search
+  // steps back toward the camera, or marches on).
+  const cv::Mat behind = depth + 0.02, in_front = depth - 0.02;
+  for (const cv::Mat* hint : {static_cast<const cv::Mat*>(nullptr), &depth, &behind, &in_front}) {
     const ModelMaps maps = raycast(volume, in, Pose::Identity(), 0.3f, 3.0f, false, hint);
     // The outermost pixels' cells reach past the integrated band's edge.
     EXPECT_GE(maps.hits, static_cast<std::size_t>(0.9 * in.width_px * in.height_px));
@@ -283,15 +286,25 @@ Pose smallMotion() {
 TEST(Icp, RecoversAKnownMotion) {
   TrackingFixture f;
   const Pose truth = smallMotion();
-  const TrackingResult r =
-      trackFrame(f.frameAt(truth), f.model, Pose::Identity(), f.config.tracking);
-  ASSERT_TRUE(r.ok) << r.failure;
-  // The model is the 5.9 mm-voxel surface, so sub-millimetre agreement is what it supports.
-  EXPECT_LT((r.T_W_C.translation() - truth.translation()).norm(), 1e-3f);
-  EXPECT_LT(angleDeg(r.T_W_C.linear(), truth.linear()), 0.1f);
-  // The moved camera sees about a fifth of its view outside the single view the model holds.
-  EXPECT_GT(r.inlier_fraction, 0.7f);
-  EXPECT_LT(r.rmse_m, 2e-3f);
+  // Every pixel against a full-resolution model, and the pipeline's defaults: the model cast at
+  // half resolution, every second pixel of every second row at the finest level.
+  TrackingConfig all_pixels = f.config.tracking;
+  all_pixels.finest_level_stride = 1;
+  const ModelMaps half_model =
+      raycast(f.volume, levelIntrinsics(f.in, 1), Pose::Identity(), 0.3f, 3.0f);
+  ASSERT_EQ(half_model.intrinsics.width_px, f.in.width_px / 2);
+  const std::vector<std::pair<const ModelMaps*, TrackingConfig>> variants = {
+      {&f.model, all_pixels}, {&half_model, f.config.tracking}};
+  for (const auto& [model, config] : variants) {
+    const TrackingResult r = trackFrame(f.frameAt(truth), *model, Pose::Identity(), config);
+    ASSERT_TRUE(r.ok) << r.failure;
+    // The model is the 5.9 mm-voxel surface, so sub-millimetre agreement is what it supports.
+    EXPECT_LT((r.T_W_C.translation() - truth.translation()).norm(), 1e-3f);
+    EXPECT_LT(angleDeg(r.T_W_C.linear(), truth.linear()), 0.1f);
+    // The moved camera sees about a fifth of its view outside the single view the model holds.
+    EXPECT_GT(r.inlier_fraction, 0.7f);
+    EXPECT_LT(r.rmse_m, 2e-3f);
+  }
 }
 
 TEST(Icp, ReportsLossWhenTheFrameShowsSomethingElse) {
@@ -364,6 +377,14 @@ TEST(Fusion, RejectsFramesAndSettingsThatDoNotFit) {
   EXPECT_THROW(Fusion(bad, in), std::invalid_argument);
   // A 3-level pyramid needs sizes divisible by 4.
   EXPECT_THROW(Fusion(FusionConfig{}, camera(322, 240, 285.0)), std::invalid_argument);
+  FusionConfig no_level;
+  no_level.model_level = 3;  // beyond the 3-level pyramid
+  EXPECT_THROW(Fusion(no_level, in), std::invalid_argument);
+  for (int stride : {0, 5}) {
+    FusionConfig bad_stride;
+    bad_stride.tracking.finest_level_stride = stride;
+    EXPECT_THROW(Fusion(bad_stride, in), std::invalid_argument);
+  }
 }
 
 TEST(Fusion, TracksASyntheticHandHeldSequenceWithNoise) {
