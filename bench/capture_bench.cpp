@@ -39,6 +39,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 
+#include "bench_main.h"
 #include "objscan/capture/folder_source.h"
 #include "objscan/capture/openni.h"
 #include "objscan/core/atomic_file.h"
@@ -423,10 +424,5 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  try {
-    return run(argc, argv);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "capture_bench: %s\n", e.what());
-    return 1;
-  }
+  return objscan::bench::guardedMain("capture_bench", run, argc, argv);
 }

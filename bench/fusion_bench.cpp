@@ -43,6 +43,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 
+#include "bench_main.h"
 #include "fusion_peers.h"
 #include "objscan/capture/folder_source.h"
 #include "objscan/core/atomic_file.h"
@@ -498,10 +499,5 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  try {
-    return run(argc, argv);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "fusion_bench: %s\n", e.what());
-    return 1;
-  }
+  return objscan::bench::guardedMain("fusion_bench", run, argc, argv);
 }

@@ -18,6 +18,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "bench_main.h"
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/ply_io.h"
 #include "objscan/core/trajectory.h"
@@ -77,10 +78,5 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  try {
-    return run(argc, argv);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "mesh_picture: %s\n", e.what());
-    return 1;
-  }
+  return objscan::bench::guardedMain("mesh_picture", run, argc, argv);
 }

@@ -19,6 +19,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "bench_main.h"
 #include "objscan/render/offscreen_renderer.h"
 #include "objscan/render/sensor_model.h"
 #include "objscan/render/synthetic_scene.h"
@@ -137,10 +138,5 @@ int run(int argc, char** argv) {
 }
 
 int main(int argc, char** argv) {
-  try {
-    return run(argc, argv);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "synth_bench: %s\n", e.what());
-    return 2;
-  }
+  return objscan::bench::guardedMain("synth_bench", run, argc, argv);
 }
