@@ -9,6 +9,7 @@
 
 #include "exit_codes.h"
 #include "frame_sources.h"
+#include "objscan/capture/read_ahead.h"
 #include "objscan/core/error.h"
 #include "objscan/core/log.h"
 #include "objscan/core/ply_io.h"
@@ -59,6 +60,11 @@ int runFuse(const FuseCommandOptions& options) {
     source_options.intrinsics_origin = options.intrinsics.string();
   }
   std::unique_ptr<capture::FrameSource> source = openFrameSource(options.source, source_options);
+  // A recording or folder is decoded a few frames ahead, on a thread of its own, while the
+  // previous frames are fused; a sensor is read directly, so that the freshest frame is fused.
+  if (!source->info().live) {
+    source = std::make_unique<capture::ReadAheadSource>(std::move(source));
+  }
   const capture::SourceInfo& info = source->info();
 
   std::optional<Trajectory> given;

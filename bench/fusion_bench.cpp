@@ -25,6 +25,7 @@
 // high-water mark gives its peak memory: the mark is reset after the frames are loaded, and the
 // table shows the peak above that baseline.
 
+#include <malloc.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -173,44 +174,47 @@ FusionBenchResult runObjscan(const LoadedInput& loaded, const Settings& settings
   out.notes["model_level"] = settings.model_level;
   out.notes["finest_level_stride"] = settings.finest_stride;
 
-  // 1. The full loop, tracking.
-  objscan::fusion::Fusion fusion(config, loaded.intrinsics, poseAt(in, 0));
-  objscan::fusion::FrameTimings sum;
-  std::size_t tracked = 0, iterations = 0;
-  const auto loop_start = Clock::now();
-  for (std::size_t i = 0; i < n; ++i) {
-    objscan::RgbdFrame frame;
-    frame.index = static_cast<std::int64_t>(i);
-    frame.stamp_s = loaded.stamps[i];
-    frame.depth_m = in.depth_m[i];
-    frame.color_rgb = in.color_rgb[i];
-    frame.intrinsics = loaded.intrinsics;
-    const objscan::fusion::FrameOutcome o = fusion.process(frame);
-    if (o.status != objscan::fusion::FrameStatus::kTracked) continue;
-    ++tracked;
-    iterations += static_cast<std::size_t>(o.tracking.iterations);
-    sum.preprocess_ms += o.timings.preprocess_ms;
-    sum.track_ms += o.timings.track_ms;
-    sum.integrate_ms += o.timings.integrate_ms;
-    sum.raycast_ms += o.timings.raycast_ms;
+  // 1. The full loop, tracking. Its volume is freed before the next measurement, so the peak is
+  // that of the loop or of a stage below, whichever is larger.
+  {
+    objscan::fusion::Fusion fusion(config, loaded.intrinsics, poseAt(in, 0));
+    objscan::fusion::FrameTimings sum;
+    std::size_t tracked = 0, iterations = 0;
+    const auto loop_start = Clock::now();
+    for (std::size_t i = 0; i < n; ++i) {
+      objscan::RgbdFrame frame;
+      frame.index = static_cast<std::int64_t>(i);
+      frame.stamp_s = loaded.stamps[i];
+      frame.depth_m = in.depth_m[i];
+      frame.color_rgb = in.color_rgb[i];
+      frame.intrinsics = loaded.intrinsics;
+      const objscan::fusion::FrameOutcome o = fusion.process(frame);
+      if (o.status != objscan::fusion::FrameStatus::kTracked) continue;
+      ++tracked;
+      iterations += static_cast<std::size_t>(o.tracking.iterations);
+      sum.preprocess_ms += o.timings.preprocess_ms;
+      sum.track_ms += o.timings.track_ms;
+      sum.integrate_ms += o.timings.integrate_ms;
+      sum.raycast_ms += o.timings.raycast_ms;
+    }
+    const double loop_s = msSince(loop_start) / 1e3;
+    objscan::Trajectory truth;
+    for (std::size_t i = 0; i < n; ++i) truth.poses.push_back({loaded.stamps[i], poseAt(in, i)});
+    out.ate_rmse_m = objscan::absoluteTrajectoryError(fusion.trajectory(), truth).rmse_m;
+    out.tracking_failures = fusion.framesLost();
+    const double per = 1.0 / static_cast<double>(std::max<std::size_t>(tracked, 1));
+    out.prepare_ms = sum.preprocess_ms * per;
+    out.track_ms = sum.track_ms * per;
+    out.notes["loop_fps"] = static_cast<double>(n) / loop_s;
+    out.notes["loop_ms"] = {{"preprocess", sum.preprocess_ms * per},
+                            {"track", sum.track_ms * per},
+                            {"integrate", sum.integrate_ms * per},
+                            {"raycast_with_hint", sum.raycast_ms * per}};
+    out.notes["loop_icp_iterations_per_frame"] = static_cast<double>(iterations) * per;
+    out.notes["loop_lost_frames"] = fusion.framesLost();
+    out.notes["loop_blocks"] = fusion.volume().blockCount();
+    out.notes["loop_volume_mb"] = static_cast<double>(fusion.volume().memoryBytes()) / 1e6;
   }
-  const double loop_s = msSince(loop_start) / 1e3;
-  objscan::Trajectory truth;
-  for (std::size_t i = 0; i < n; ++i) truth.poses.push_back({loaded.stamps[i], poseAt(in, i)});
-  out.ate_rmse_m = objscan::absoluteTrajectoryError(fusion.trajectory(), truth).rmse_m;
-  out.tracking_failures = fusion.framesLost();
-  const double per = 1.0 / static_cast<double>(std::max<std::size_t>(tracked, 1));
-  out.prepare_ms = sum.preprocess_ms * per;
-  out.track_ms = sum.track_ms * per;
-  out.notes["loop_fps"] = static_cast<double>(n) / loop_s;
-  out.notes["loop_ms"] = {{"preprocess", sum.preprocess_ms * per},
-                          {"track", sum.track_ms * per},
-                          {"integrate", sum.integrate_ms * per},
-                          {"raycast_with_hint", sum.raycast_ms * per}};
-  out.notes["loop_icp_iterations_per_frame"] = static_cast<double>(iterations) * per;
-  out.notes["loop_lost_frames"] = fusion.framesLost();
-  out.notes["loop_blocks"] = fusion.volume().blockCount();
-  out.notes["loop_volume_mb"] = static_cast<double>(fusion.volume().memoryBytes()) / 1e6;
 
   // 2. Integration at the ground-truth poses (clipping the depth range included: the peers clip
   // inside their integrate calls).
@@ -272,6 +276,7 @@ Json toJson(const FusionBenchResult& r) {
 /// Runs one system on the frames and writes its result (with peak memory) to `out`.
 int runChild(const std::string& system, const Settings& settings, const fs::path& out) {
   const LoadedInput loaded = load(settings);
+  malloc_trim(0);  // what the loader freed goes back to the kernel, and counts when reused
   const double baseline = statusBytes("VmRSS");
   resetPeakMemory();
   FusionBenchResult r;

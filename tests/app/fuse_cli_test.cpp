@@ -38,8 +38,8 @@ fs::path syntheticRecording(const TempDir& dir) {
   writeIntrinsicsJson(dir / "small.json", in);
   const fs::path scene = dir / "scene";
   const ProcessResult r =
-      objscan({"synth", "--out", scene.string(), "--frames", "12", "--objects", "3", "--seed",
-               "2", "--intrinsics", (dir / "small.json").string()});
+      objscan({"synth", "--out", scene.string(), "--frames", "12", "--objects", "3", "--seed", "2",
+               "--intrinsics", (dir / "small.json").string()});
   EXPECT_EQ(r.exit_code, 0) << r.err;
   return scene;
 }
@@ -74,6 +74,23 @@ TEST(FuseCli, WritesAMeshAndATrajectoryThatReadBack) {
   EXPECT_EQ(files, 2u);
 }
 
+// Recordings and synthetic scenes are decoded on a read-ahead thread: the off-screen renderer of
+// a synth: source and OpenNI2's file player must work there too.
+TEST(FuseCli, ReadsASyntheticSceneAndAnOniRecordingAhead) {
+  TempDir dir;
+  const ProcessResult synth = objscan(
+      {"fuse", "synth:5,frames=6,objects=2", "--out", (dir / "synth").string(), "--no-color"});
+  ASSERT_EQ(synth.exit_code, 0) << synth.err;
+  EXPECT_NE(synth.out.find("6 read, 6 fused, 0 lost"), std::string::npos) << synth.out;
+  EXPECT_EQ(readTumTrajectory(dir / "synth" / "trajectory.txt").size(), 6u);
+  const fs::path oni = fs::path(OBJSCAN_SOURCE_DIR) / "recordings" / "tum_fr2_desk.oni";
+  const ProcessResult replay =
+      objscan({"fuse", oni.string(), "--out", (dir / "oni").string(), "--end", "8"});
+  ASSERT_EQ(replay.exit_code, 0) << replay.err;
+  EXPECT_NE(replay.out.find("8 read, 8 fused, 0 lost"), std::string::npos) << replay.out;
+  EXPECT_GT(readPly(dir / "oni" / "mesh.ply").triangles.size(), 10000u);
+}
+
 TEST(FuseCli, GivenPosesAndFrameSelection) {
   TempDir dir;
   const fs::path scene = syntheticRecording(dir);
@@ -101,17 +118,17 @@ TEST(FuseCli, BadSettingsAndSourcesAreOneErrorLine) {
   const std::string out = (dir / "out").string();
   expectOneErrorLine(objscan({"fuse", scene.string(), "--out", out, "--voxel-size", "0"}), 2,
                      "voxel size");
-  expectOneErrorLine(objscan({"fuse", scene.string(), "--out", out, "--truncation", "0.001"}),
-                     2, "truncation");
+  expectOneErrorLine(objscan({"fuse", scene.string(), "--out", out, "--truncation", "0.001"}), 2,
+                     "truncation");
   expectOneErrorLine(objscan({"fuse", (dir / "missing").string(), "--out", out}), 2, "missing");
   expectOneErrorLine(
       objscan({"fuse", scene.string(), "--out", out, "--poses", (dir / "none.txt").string()}), 2,
       "none.txt");
   // Intrinsics for another image size.
   writeIntrinsicsJson(dir / "vga.json", Intrinsics::xtionDefault());
-  expectOneErrorLine(objscan({"fuse", scene.string(), "--out", out, "--intrinsics",
-                              (dir / "vga.json").string()}),
-                     2, "640x480");
+  expectOneErrorLine(
+      objscan({"fuse", scene.string(), "--out", out, "--intrinsics", (dir / "vga.json").string()}),
+      2, "640x480");
   // An output folder that cannot be made: a file is in the way.
   testing::writeBytes(dir / "file", "x");
   expectOneErrorLine(objscan({"fuse", scene.string(), "--out", (dir / "file").string()}), 1,

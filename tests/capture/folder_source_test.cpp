@@ -1,11 +1,15 @@
 #include "objscan/capture/folder_source.h"
 
+#include <chrono>
+#include <thread>
+
 #include <gtest/gtest.h>
 
 #include <cstdio>
 #include <opencv2/imgcodecs.hpp>
 #include <stdexcept>
 
+#include "objscan/capture/read_ahead.h"
 #include "objscan/core/error.h"
 #include "test_support.h"
 
@@ -183,6 +187,54 @@ TEST(FolderSource, ImageThatVanishedAfterOpeningThrows) {
   fs::remove(dir / "rgb" / "1.png");
   expectFrame(source->next(), 0, /*exact_depth=*/false);
   EXPECT_THROW(source->next(), InputError);
+}
+
+// --- Read-ahead over a real folder source
+// ---------------------------------------------------------
+
+TEST(ReadAhead, SameFramesBadFramesAndEndInTheInnerSourcesOrder) {
+  TempDir dir;
+  makeSevenScenes(dir.path(), 6);
+  const fs::path depth2 = dir / sevenScenesFrameName(2, "depth.png");
+  const std::string png = testing::readBytes(depth2);
+  writeBytes(depth2, png.substr(0, png.size() / 2));  // truncated
+  // Depth 2: the reader runs ahead of a consumer that takes its time, and waits for it.
+  ReadAheadSource source(openFolderSource(dir.path()), 2);
+  EXPECT_EQ(source.info().frame_count, 6u);
+  for (int k = 0; k < 6; ++k) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(k == 1 ? 50 : 0));
+    const FrameResult r = source.next();
+    if (k == 2) {
+      ASSERT_EQ(r.status, FrameStatus::kBadFrame);
+      EXPECT_NE(r.reason.find("frame 2: " + depth2.string()), std::string::npos) << r.reason;
+    } else {
+      expectFrame(r, k);
+    }
+  }
+  EXPECT_EQ(source.next().status, FrameStatus::kEndOfStream);
+  EXPECT_EQ(source.next().status, FrameStatus::kEndOfStream);
+}
+
+TEST(ReadAhead, WhatTheInnerSourceThrowsArrivesAfterTheFramesBeforeIt) {
+  TempDir dir;
+  makeTum(dir.path(), 3);
+  auto inner = openFolderSource(dir.path());
+  fs::remove(dir / "rgb" / "2.png");  // frame 2 vanished after opening: the folder source throws
+  ReadAheadSource source(std::move(inner));
+  expectFrame(source.next(), 0, /*exact_depth=*/false);
+  expectFrame(source.next(), 1, /*exact_depth=*/false);
+  expectInputError([&] { source.next(); }, dir / "rgb" / "2.png", "");
+  EXPECT_EQ(source.next().status, FrameStatus::kEndOfStream);
+}
+
+TEST(ReadAhead, StopsItsReaderWhenDestroyedMidStream) {
+  TempDir dir;
+  makeSevenScenes(dir.path(), 8);
+  auto source = std::make_unique<ReadAheadSource>(openFolderSource(dir.path()), 1);
+  expectFrame(source->next(), 0);
+  source.reset();  // joins a reader that is waiting for room in its queue
+  EXPECT_THROW(ReadAheadSource(nullptr), std::invalid_argument);
+  EXPECT_THROW(ReadAheadSource(openFolderSource(dir.path()), 0), std::invalid_argument);
 }
 
 TEST(FolderSource, NotADatasetFolderIsAnInputError) {
