@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <csignal>
+
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -89,6 +91,24 @@ TEST(FuseCli, ReadsASyntheticSceneAndAnOniRecordingAhead) {
   ASSERT_EQ(replay.exit_code, 0) << replay.err;
   EXPECT_NE(replay.out.find("8 read, 8 fused, 0 lost"), std::string::npos) << replay.out;
   EXPECT_GT(readPly(dir / "oni" / "mesh.ply").triangles.size(), 10000u);
+}
+
+TEST(FuseCli, CtrlCWritesWhatWasFusedSoFar) {
+  TempDir dir;
+  const fs::path out = dir / "out";
+  testing::ProcessOptions interrupt;
+  interrupt.signal = SIGINT;
+  interrupt.signal_when = "fusing frames:  10%";  // the progress line after 20 of 200 frames
+  const ProcessResult r = testing::runProcess(
+      {OBJSCAN_EXE, "fuse", "synth:4,frames=200,objects=2", "--out", out.string(), "--no-color"},
+      interrupt);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("stopped by    Ctrl-C"), std::string::npos) << r.out;
+  const std::size_t fused = readTumTrajectory(out / "trajectory.txt").size();
+  EXPECT_GE(fused, 20u);
+  EXPECT_LT(fused, 200u);
+  EXPECT_NE(r.out.find(std::to_string(fused) + " fused"), std::string::npos) << r.out;
+  EXPECT_GT(readPly(out / "mesh.ply").triangles.size(), 1000u);
 }
 
 TEST(FuseCli, GivenPosesAndFrameSelection) {
