@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <limits>
 #include <optional>
 #include <stdexcept>
@@ -219,8 +218,9 @@ void raycast(const TsdfVolume& volume_in, const Intrinsics& in, const Pose& T_W_
             };
             // Cast right after integrating a depth image from the same pose, the surface is
             // near that image's reading. The distance stored at the reading says on which side
-            // and about how far: search from there. Returns 1 when bracketed, 0 when the ray
-            // leaves the observed band first, -1 to fall back to marching.
+            // and about how far: search from there. Returns 1 when bracketed, 0 when marching on
+            // from a reading in front of the surface finds no crossing (a march from the camera
+            // would pass the same voxels), -1 to fall back to marching the whole range.
             const auto searchFromHint = [&](float hint, float* bracket, float* before) -> int {
               const Eigen::Vector3f q = q0 + hint * dq;
               const Voxel* vox = reader.get(

@@ -24,8 +24,8 @@ struct TrackingConfig {
   float max_angle_rad = 0.349f;
   /// Huber threshold of the point-to-plane residual: larger residuals get weight huber / |r|.
   float huber_m = 0.01f;
-  /// Tracking is lost when fewer than this share of the frame's valid pixels (finest level)
-  /// match the model after the last iteration...
+  /// Tracking is lost when fewer than this share of the frame's pixels with a vertex and a
+  /// normal that take part at the finest level match the model in the last iteration there...
   float min_inlier_fraction = 0.10f;
   /// ... or when their point-to-plane RMS residual exceeds this ...
   float max_rmse_m = 0.02f;
