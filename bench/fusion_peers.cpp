@@ -42,10 +42,6 @@ using Clock = std::chrono::steady_clock;
 /// tolerance below 1 s pairs exactly the same frames.
 constexpr double kAteMaxDtS = 0.5;
 
-/// Raycasts are timed from at least this many of the ground-truth poses, spread over the
-/// sequence (every frame's pose when there are fewer).
-constexpr std::size_t kMinRaycasts = 50;
-
 /// Runs `work` once and returns how long it took, milliseconds.
 template <typename Work>
 double timeMs(Work&& work) {
@@ -280,7 +276,7 @@ std::pair<double, std::size_t> raycastOpenCv(const FusionBenchInput& input,
                                              const cv::kinfu::Intr& intrinsics,
                                              const cv::kinfu::Volume& volume) {
   const std::size_t n = input.T_W_C.size();
-  const std::size_t stride = n > kMinRaycasts ? n / kMinRaycasts : 1;
+  const std::size_t stride = raycastPoseStride(n);
   const cv::Size size(input.width, input.height);
   cv::Mat points, normals;  // reused, as a tracking loop would
   std::vector<double> times_ms;

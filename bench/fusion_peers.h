@@ -48,6 +48,10 @@ struct FusionBenchResult {
   nlohmann::json notes = nlohmann::json::object();  ///< settings worth printing
 };
 
+/// Every system's raycasts are timed from every raycastPoseStride(n)-th of the n ground-truth
+/// poses: about 50 casts spread over the sequence (every pose when there are fewer).
+inline std::size_t raycastPoseStride(std::size_t frames) { return frames > 50 ? frames / 50 : 1; }
+
 FusionBenchResult runOpen3dPeer(const FusionBenchInput& input);
 FusionBenchResult runOpenCvPeer(const FusionBenchInput& input);
 

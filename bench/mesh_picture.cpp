@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
+#include <stdexcept>
 #include <string>
 
 #include <opencv2/core.hpp>
@@ -49,6 +50,7 @@ int run(int argc, char** argv) {
   }
   objscan::TriangleMesh mesh = objscan::readPly(argv[1]);
   const objscan::Trajectory trajectory = objscan::readTumTrajectory(argv[2]);
+  if (trajectory.empty()) throw std::runtime_error(std::string(argv[2]) + ": no poses");
   const std::size_t k = pose_index >= 0 && static_cast<std::size_t>(pose_index) < trajectory.size()
                             ? static_cast<std::size_t>(pose_index)
                             : trajectory.size() / 2;

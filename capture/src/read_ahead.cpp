@@ -43,14 +43,18 @@ void ReadAheadSource::read() {
     } catch (...) {
       error = std::current_exception();
     }
-    const bool last = error || r.status == FrameStatus::kEndOfStream;
+    bool last = error || r.status == FrameStatus::kEndOfStream;
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      if (error) {
-        error_ = error;
-      } else {
-        queue_.push_back(std::move(r));
+      if (!error) {
+        try {
+          queue_.push_back(std::move(r));
+        } catch (...) {  // out of memory: handed to the consumer like the source's own errors
+          error = std::current_exception();
+          last = true;
+        }
       }
+      if (error) error_ = error;
       finished_ = last;
     }
     changed_.notify_all();

@@ -1,5 +1,6 @@
 #include "objscan/fusion/pipeline.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
@@ -16,14 +17,24 @@ double msSince(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
 
-/// Every 2^level-th pixel of every 2^level-th row: where a ray of that level starts its search.
-void subsample(const cv::Mat& depth, int level, cv::Mat* out) {
+/// Where each ray of pyramid level `level` starts its search: the nearest reading of the
+/// 2^level x 2^level pixels the ray passes between (0 if none), the rule the frame's pyramid
+/// follows at depth edges too.
+void nearestPerBlock(const cv::Mat& depth, int level, cv::Mat* out) {
   const int step = 1 << level;
   out->create(depth.rows / step, depth.cols / step, CV_32FC1);
   for (int v = 0; v < out->rows; ++v) {
-    const float* in = depth.ptr<float>(v * step);
     float* o = out->ptr<float>(v);
-    for (int u = 0; u < out->cols; ++u) o[u] = in[u * step];
+    for (int u = 0; u < out->cols; ++u) {
+      float nearest = 0.0f;
+      for (int dv = 0; dv < step; ++dv) {
+        const float* in = depth.ptr<float>(v * step + dv) + u * step;
+        for (int du = 0; du < step; ++du) {
+          if (in[du] > 0.0f && (nearest == 0.0f || in[du] < nearest)) nearest = in[du];
+        }
+      }
+      o[u] = nearest;
+    }
   }
 }
 
@@ -33,8 +44,8 @@ void FusionConfig::validate() const {
   preprocess.validate();
   volume.validate();
   tracking.validate();
-  if (model_level < 0 || model_level >= preprocess.pyramid_levels || model_level > 2) {
-    throw std::invalid_argument("the model's pyramid level must be 0 to 2 and within the pyramid");
+  if (model_level < 0 || model_level > 2) {
+    throw std::invalid_argument("the model's pyramid level must be 0 to 2");
   }
   if (!(min_valid_fraction >= 0.0f && min_valid_fraction < 1.0f)) {
     throw std::invalid_argument("the minimum share of valid depth must be in [0, 1)");
@@ -45,6 +56,7 @@ Fusion::Fusion(const FusionConfig& config, const Intrinsics& intrinsics, const P
     : config_(config), intrinsics_(intrinsics), volume_(config.volume), last_good_(initial_T_W_C) {
   config_.validate();
   intrinsics_.validate();
+  model_level_ = std::min(config_.model_level, config_.preprocess.pyramid_levels - 1);
   const int divisor = 1 << (config_.preprocess.pyramid_levels - 1);
   if (intrinsics_.width_px % divisor != 0 || intrinsics_.height_px % divisor != 0) {
     throw std::invalid_argument(
@@ -92,7 +104,7 @@ FrameOutcome Fusion::process(const RgbdFrame& frame, const std::optional<Pose>& 
     out.timings.preprocess_ms = msSince(start);
     start = Clock::now();
     if (!model_current_) {
-      raycast(volume_, levelIntrinsics(intrinsics_, config_.model_level), last_good_,
+      raycast(volume_, levelIntrinsics(intrinsics_, model_level_), last_good_,
               config_.preprocess.min_depth_m, config_.preprocess.max_depth_m, false, nullptr,
               &model_);
       model_current_ = true;
@@ -119,10 +131,10 @@ FrameOutcome Fusion::process(const RgbdFrame& frame, const std::optional<Pose>& 
   if (!given_T_W_C) {
     // The model for the next frame; with given poses it is cast only when tracking needs it.
     start = Clock::now();
-    if (config_.model_level > 0) subsample(depth, config_.model_level, &hint_);
-    raycast(volume_, levelIntrinsics(intrinsics_, config_.model_level), pose,
+    if (model_level_ > 0) nearestPerBlock(depth, model_level_, &hint_);
+    raycast(volume_, levelIntrinsics(intrinsics_, model_level_), pose,
             config_.preprocess.min_depth_m, config_.preprocess.max_depth_m, false,
-            config_.model_level > 0 ? &hint_ : &depth, &model_);
+            model_level_ > 0 ? &hint_ : &depth, &model_);
     model_current_ = true;
     out.timings.raycast_ms = msSince(start);
   }

@@ -228,7 +228,8 @@ void raycast(const TsdfVolume& volume_in, const Intrinsics& in, const Pose& T_W_
               if (!vox || vox->weight <= 0.0f) return -1;
               if (vox->tsdf >= 0.0f) {  // in front of the surface: march on from here
                 bool back_face = false;
-                return march(hint, z_end, bracket, before, &back_face) ? 1 : 0;
+                const bool hit = march(hint, z_end, bracket, before, &back_face);
+                return hit ? 1 : (back_face ? -1 : 0);
               }
               // Behind it: step back toward the camera until the distance turns positive.
               float z_neg = hint, f_neg = vox->tsdf;
@@ -261,15 +262,18 @@ void raycast(const TsdfVolume& volume_in, const Intrinsics& in, const Pose& T_W_
               found = march(z_begin, z_end, &bracket, &prev_z, &back_face);
             }
             if (!found) continue;
-            const float z = bracket + (bracket - prev_z);  // upper end of the Newton clamp
             // One Newton step on the interpolated distance along the ray, kept near the
-            // bracket; the same 8 voxels give the normal.
+            // bracket; the same 8 voxels give the normal. The march read the nearest voxel at
+            // each sample, up to half a voxel diagonal (0.87 voxel) from the sample itself, so
+            // the step may leave the bracket by that much on either side.
+            const float slack = 0.87f * min_step_z;
+            const float lo = prev_z - slack, hi = bracket + (bracket - prev_z) + slack;
             float value = 0.0f;
             Eigen::Vector3f gradient;
             if (!reader.sample(q0 + bracket * dq, &value, &gradient)) continue;
             const float slope = gradient.dot(dq);  // d(value)/dz, negative toward the surface
             float hit_z = bracket;
-            if (slope < 0.0f) hit_z = std::clamp(hit_z - value / slope, prev_z, z);
+            if (slope < 0.0f) hit_z = std::clamp(hit_z - value / slope, lo, hi);
             const float norm = gradient.norm();
             if (!(norm > 0.0f)) continue;
             const Eigen::Vector3f q = q0 + hit_z * dq;

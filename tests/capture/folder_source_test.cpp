@@ -1,6 +1,8 @@
 #include "objscan/capture/folder_source.h"
 
+#include <atomic>
 #include <chrono>
+#include <memory>
 #include <thread>
 
 #include <gtest/gtest.h>
@@ -198,11 +200,9 @@ TEST(ReadAhead, SameFramesBadFramesAndEndInTheInnerSourcesOrder) {
   const fs::path depth2 = dir / sevenScenesFrameName(2, "depth.png");
   const std::string png = testing::readBytes(depth2);
   writeBytes(depth2, png.substr(0, png.size() / 2));  // truncated
-  // Depth 2: the reader runs ahead of a consumer that takes its time, and waits for it.
   ReadAheadSource source(openFolderSource(dir.path()), 2);
   EXPECT_EQ(source.info().frame_count, 6u);
   for (int k = 0; k < 6; ++k) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(k == 1 ? 50 : 0));
     const FrameResult r = source.next();
     if (k == 2) {
       ASSERT_EQ(r.status, FrameStatus::kBadFrame);
@@ -213,6 +213,46 @@ TEST(ReadAhead, SameFramesBadFramesAndEndInTheInnerSourcesOrder) {
   }
   EXPECT_EQ(source.next().status, FrameStatus::kEndOfStream);
   EXPECT_EQ(source.next().status, FrameStatus::kEndOfStream);
+}
+
+/// A real folder source that counts how often it is asked for a frame.
+class CountingSource : public FrameSource {
+ public:
+  CountingSource(std::unique_ptr<FrameSource> inner, std::atomic<int>* calls)
+      : inner_(std::move(inner)), calls_(calls) {}
+  const SourceInfo& info() const override { return inner_->info(); }
+  FrameResult next() override {
+    ++*calls_;
+    return inner_->next();
+  }
+
+ private:
+  std::unique_ptr<FrameSource> inner_;
+  std::atomic<int>* calls_;
+};
+
+/// Waits up to 5 s for `calls` to reach `n`.
+bool reaches(const std::atomic<int>& calls, int n) {
+  for (int i = 0; i < 500 && calls.load() < n; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return calls.load() >= n;
+}
+
+TEST(ReadAhead, ReadsAheadOnItsOwnButNoFurtherThanItsDepth) {
+  TempDir dir;
+  makeSevenScenes(dir.path(), 8);
+  std::atomic<int> calls{0};
+  ReadAheadSource source(std::make_unique<CountingSource>(openFolderSource(dir.path()), &calls), 3);
+  // Without a single next(), three frames are decoded, and no more.
+  ASSERT_TRUE(reaches(calls, 3));
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_EQ(calls.load(), 3);
+  // Taking one makes room for one more.
+  expectFrame(source.next(), 0);
+  ASSERT_TRUE(reaches(calls, 4));
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_EQ(calls.load(), 4);
 }
 
 TEST(ReadAhead, WhatTheInnerSourceThrowsArrivesAfterTheFramesBeforeIt) {

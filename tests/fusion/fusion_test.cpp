@@ -182,6 +182,41 @@ TEST(Raycast, FindsThePlaneAtItsDepthFacingTheCamera) {
   }
 }
 
+TEST(Raycast, ReadingJustBehindTheSurfaceStillFindsTheFusedSurface) {
+  // The plane sits 0.1 voxel past a voxel centre; the hint is 0.3 voxel behind it, so its nearest
+  // voxel is still in front of the surface. The crossing is the fused surface, not the hint.
+  const Intrinsics in = camera(160, 120, 142.6);
+  const VolumeConfig config;
+  const float plane_z = (170.0f + 0.1f) * config.voxel_size_m;
+  TsdfVolume volume(config);
+  const cv::Mat depth =
+      renderDepth({{}, {{Eigen::Vector3f(0, 0, 1), plane_z}}}, in, Pose::Identity());
+  volume.integrate(depth, {}, in, Pose::Identity());
+  const cv::Mat behind = depth + 0.3 * config.voxel_size_m;
+  const ModelMaps maps = raycast(volume, in, Pose::Identity(), 0.3f, 3.0f, false, &behind);
+  const std::size_t centre = static_cast<std::size_t>(60 * in.width_px + 80);
+  EXPECT_NEAR(maps.vertices_W[centre].z(), plane_z, 1e-4f);
+}
+
+TEST(Raycast, WithAHintTheCrossingNearestTheReadingIsFound) {
+  // Two surfaces along the same rays: a far wall seen alone first, then a near plane over the
+  // left half of the view (the wall's voxels behind it stay as they were). Without a hint a ray
+  // finds the near plane; with the far wall's depth as its hint, it searches from there and
+  // finds the wall: the hint is what the search starts from, not a mere speed-up.
+  const Intrinsics in = camera(160, 120, 142.6);
+  TsdfVolume volume(VolumeConfig{});
+  const cv::Mat far = renderDepth({{}, {{Eigen::Vector3f(0, 0, 1), 2.0f}}}, in, Pose::Identity());
+  volume.integrate(far, {}, in, Pose::Identity());
+  cv::Mat near = renderDepth({{}, {{Eigen::Vector3f(0, 0, 1), 1.0f}}}, in, Pose::Identity());
+  near.colRange(in.width_px / 2, in.width_px).setTo(0.0);
+  volume.integrate(near, {}, in, Pose::Identity());
+  const std::size_t left = static_cast<std::size_t>(60 * in.width_px + 40);
+  const ModelMaps plain = raycast(volume, in, Pose::Identity(), 0.3f, 3.0f);
+  EXPECT_NEAR(plain.vertices_W[left].z(), 1.0f, 1e-3f);
+  const ModelMaps hinted = raycast(volume, in, Pose::Identity(), 0.3f, 3.0f, false, &far);
+  EXPECT_NEAR(hinted.vertices_W[left].z(), 2.0f, 1e-3f);
+}
+
 // --- Marching cubes ------------------------------------------------------------------------------
 
 TEST(MarchingCubes, SphereSeenFromAllSidesIsClosedOutwardAndOnTheSurface) {

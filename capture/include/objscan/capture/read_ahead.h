@@ -22,7 +22,8 @@ class ReadAheadSource : public FrameSource {
  public:
   /// Starts reading at once. Throws std::invalid_argument for a null source or depth 0.
   explicit ReadAheadSource(std::unique_ptr<FrameSource> inner, std::size_t depth = 4);
-  /// Stops the reader (it finishes the frame it is decoding) and joins it.
+  /// Stops the reader (it finishes the frame it is decoding) and joins it. Not to be called while
+  /// another thread waits in next().
   ~ReadAheadSource() override;
   ReadAheadSource(const ReadAheadSource&) = delete;
   ReadAheadSource& operator=(const ReadAheadSource&) = delete;

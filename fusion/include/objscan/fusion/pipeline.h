@@ -22,7 +22,8 @@ struct FusionConfig {
   TrackingConfig tracking;
   /// A frame with fewer valid depth readings than this share of its pixels is skipped.
   float min_valid_fraction = 0.01f;
-  /// The pyramid level the tracking model is cast at: 0 = the frame's resolution, 1 = half.
+  /// The pyramid level the tracking model is cast at: 0 = the frame's resolution, 1 = half
+  /// (0 to 2; a pyramid with fewer levels uses its coarsest).
   int model_level = 1;
   /// Throws std::invalid_argument naming the bad field.
   void validate() const;
@@ -84,7 +85,8 @@ class Fusion {
   TsdfVolume volume_;
   ModelMaps model_;
   cv::Mat clipped_;             ///< this frame's clipped depth (buffer kept across frames)
-  cv::Mat hint_;                ///< clipped_ at the model's level, when that is not level 0
+  cv::Mat hint_;                ///< the nearest reading per pixel of the model's level (> 0)
+  int model_level_ = 0;         ///< config_.model_level within the pyramid
   DepthPyramid pyramid_;        ///< this frame's tracking pyramid (buffers kept across frames)
   bool model_current_ = false;  ///< model_ was cast from last_good_
   Pose last_good_;
