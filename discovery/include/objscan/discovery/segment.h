@@ -1,0 +1,55 @@
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "objscan/core/triangle_mesh.h"
+#include "objscan/discovery/segmentation.h"
+
+/// Candidate segments: their shape statistics and the paper's hard filters (section IV-A).
+namespace objscan::discovery {
+
+/// A set of a scene mesh's vertices with the statistics the filters and measures need.
+struct Segment {
+  std::vector<std::int32_t> vertices;  ///< indices into the scene mesh, increasing
+  float scale = 0.0f;                  ///< the segmentation granularity it came from
+  Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
+  /// Principal axes (columns) of the vertices' scatter matrix, by decreasing eigenvalue.
+  Eigen::Matrix3f axes = Eigen::Matrix3f::Identity();
+  /// Eigenvalues of the scatter matrix (per vertex: the covariance), lambda0 >= lambda1 >= lambda2.
+  Eigen::Vector3f eigenvalues = Eigen::Vector3f::Zero();
+  /// Extent along each principal axis (max - min of the projections), metres.
+  Eigen::Vector3f extents = Eigen::Vector3f::Zero();
+};
+
+/// The statistics of `vertices` (increasing indices into `mesh`). Throws std::invalid_argument
+/// for an empty set or an index outside the mesh.
+Segment describeSegment(const TriangleMesh& mesh, std::vector<std::int32_t> vertices,
+                        float scale = 0.0f);
+
+/// The paper's hard filters. "Larger than 1 m" is read as the largest extent, "thinner than
+/// 2 cm" as the smallest extent (the thickness along the third principal axis).
+struct SegmentFilter {
+  float max_size_m = 1.0f;
+  float min_thickness_m = 0.02f;
+  float min_lambda1_over_lambda0 = 0.05f;   ///< below: too thin, relatively (a stick)
+  float min_lambda2_over_lambda0 = 0.001f;  ///< below: too flat, relatively (a sheet)
+};
+
+/// Why `segment` is rejected, in a few words, or nothing when it passes.
+std::optional<std::string> rejection(const Segment& segment, const SegmentFilter& filter);
+
+/// The segments of every segmentation with at least `min_size` vertices that pass the filter,
+/// in order of scale, then of label.
+std::vector<Segment> candidateSegments(const TriangleMesh& mesh,
+                                       const std::vector<Segmentation>& segmentations,
+                                       std::size_t min_size, const SegmentFilter& filter);
+
+/// Intersection over union of two increasing vertex-index lists.
+double vertexIoU(const std::vector<std::int32_t>& a, const std::vector<std::int32_t>& b);
+
+}  // namespace objscan::discovery

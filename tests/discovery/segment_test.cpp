@@ -1,0 +1,89 @@
+// Segment statistics and the paper's hard filters on point sets whose shape is known.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <stdexcept>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "objscan/discovery/segment.h"
+
+namespace objscan::discovery {
+namespace {
+
+/// A solid grid of 11^3 points filling a box of the given size, rotated and moved away from the
+/// origin (so that nothing depends on the frame).
+TriangleMesh box(const Eigen::Vector3f& size) {
+  TriangleMesh mesh;
+  const Eigen::Matrix3f R =
+      Eigen::AngleAxisf(0.7f, Eigen::Vector3f(1, 2, 3).normalized()).toRotationMatrix();
+  for (int i = 0; i <= 10; ++i) {
+    for (int j = 0; j <= 10; ++j) {
+      for (int k = 0; k <= 10; ++k) {
+        const Eigen::Vector3f p =
+            (Eigen::Vector3f(i, j, k) / 10.0f - Eigen::Vector3f::Constant(0.5f)).cwiseProduct(size);
+        mesh.positions.push_back(R * p + Eigen::Vector3f(2.0f, -1.0f, 0.5f));
+      }
+    }
+  }
+  return mesh;
+}
+
+std::vector<std::int32_t> all(const TriangleMesh& mesh) {
+  std::vector<std::int32_t> v(mesh.positions.size());
+  for (std::size_t i = 0; i < v.size(); ++i) v[i] = static_cast<std::int32_t>(i);
+  return v;
+}
+
+TEST(Segment, ExtentsAndEigenvaluesOfABox) {
+  const TriangleMesh mesh = box({0.3f, 0.1f, 0.05f});
+  const Segment s = describeSegment(mesh, all(mesh));
+  EXPECT_NEAR(s.extents[0], 0.3f, 1e-5f);
+  EXPECT_NEAR(s.extents[1], 0.1f, 1e-5f);
+  EXPECT_NEAR(s.extents[2], 0.05f, 1e-5f);
+  EXPECT_TRUE(s.centroid.isApprox(Eigen::Vector3f(2.0f, -1.0f, 0.5f), 1e-5f));
+  // A uniform grid of n + 1 = 11 points over length L has variance L^2 (n + 2) / (12 n).
+  const auto variance = [](float length) { return length * length * 12.0f / 120.0f; };
+  EXPECT_NEAR(s.eigenvalues[0], variance(0.3f), 1e-6f);
+  EXPECT_NEAR(s.eigenvalues[1], variance(0.1f), 1e-6f);
+  EXPECT_NEAR(s.eigenvalues[2], variance(0.05f), 1e-6f);
+  EXPECT_THROW(describeSegment(mesh, {}), std::invalid_argument);
+  EXPECT_THROW(describeSegment(mesh, {0, 99999}), std::invalid_argument);
+}
+
+TEST(Segment, EachHardFilterRejectsWhatItShould) {
+  const SegmentFilter filter;
+  const auto why = [&](const Eigen::Vector3f& size) {
+    const TriangleMesh mesh = box(size);
+    return rejection(describeSegment(mesh, all(mesh)), filter).value_or("");
+  };
+  EXPECT_EQ(why({0.10f, 0.08f, 0.08f}), "");  // a mug
+  EXPECT_NE(why({1.20f, 0.30f, 0.30f}).find("larger than 1.00 m"), std::string::npos);
+  EXPECT_NE(why({0.30f, 0.30f, 0.01f}).find("thinner than 20 mm"), std::string::npos);
+  // A 90 cm stick 5 cm across: lambda1 / lambda0 = (5 / 90)^2 = 0.003.
+  EXPECT_NE(why({0.90f, 0.05f, 0.05f}).find("too thin"), std::string::npos);
+  // A 90 cm square board 2.5 cm thick: lambda2 / lambda0 = (2.5 / 90)^2 = 0.0008.
+  EXPECT_NE(why({0.90f, 0.90f, 0.025f}).find("too flat"), std::string::npos);
+}
+
+TEST(Segment, CandidatesKeepLargeEnoughSegmentsThatPassAndIoUCountsSharedVertices) {
+  TriangleMesh mesh = box({0.10f, 0.08f, 0.08f});  // 1331 points
+  Segmentation seg;
+  seg.scale = 2.0f;
+  seg.segment_count = 2;
+  seg.labels.assign(mesh.positions.size(), 0);
+  for (std::size_t v = 0; v < 100; ++v) seg.labels[v] = 1;  // too small at min_size 500
+  const std::vector<Segment> c = candidateSegments(mesh, {seg}, 500, SegmentFilter{});
+  ASSERT_EQ(c.size(), 1u);
+  EXPECT_EQ(c[0].vertices.size(), mesh.positions.size() - 100);
+  EXPECT_EQ(c[0].vertices.front(), 100);
+  EXPECT_EQ(c[0].scale, 2.0f);
+  EXPECT_DOUBLE_EQ(vertexIoU({1, 2, 3, 4}, {3, 4, 5}), 2.0 / 5.0);
+  EXPECT_DOUBLE_EQ(vertexIoU({1, 2}, {1, 2}), 1.0);
+  EXPECT_DOUBLE_EQ(vertexIoU({1}, {2}), 0.0);
+}
+
+}  // namespace
+}  // namespace objscan::discovery
