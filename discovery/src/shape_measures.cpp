@@ -1,0 +1,223 @@
+#include "objscan/discovery/shape_measures.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <numeric>
+#include <random>
+#include <stdexcept>
+
+#include <Eigen/Geometry>
+
+extern "C" {
+#include <libqhull_r/qhull_ra.h>
+}
+
+namespace objscan::discovery {
+
+namespace {
+
+struct Ball {
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  double r2 = 0.0;
+  /// With a relative tolerance: the points that define a ball lie on it up to rounding.
+  bool contains(const Eigen::Vector3d& p) const {
+    return (p - c).squaredNorm() <= r2 * (1.0 + 1e-10) + 1e-18;
+  }
+};
+
+Ball through(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  const Eigen::Vector3d c = 0.5 * (a + b);
+  return {c, (a - c).squaredNorm()};
+}
+
+/// The smallest ball with a, b, c on its surface (their circumcircle's); for (nearly) collinear
+/// points, the smallest ball through the two farthest apart, which holds the third.
+Ball through(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  const Eigen::Vector3d ab = b - a, ac = c - a, n = ab.cross(ac);
+  const double n2 = n.squaredNorm();
+  if (n2 <= 1e-24 * ab.squaredNorm() * ac.squaredNorm()) {
+    Ball best = through(a, b);
+    for (const Ball& x : {through(a, c), through(b, c)}) {
+      if (x.r2 > best.r2) best = x;
+    }
+    return best;
+  }
+  const Eigen::Vector3d centre =
+      a + (ac.squaredNorm() * n.cross(ab) + ab.squaredNorm() * ac.cross(n)) / (2.0 * n2);
+  return {centre, (a - centre).squaredNorm()};
+}
+
+/// The ball with a, b, c, d on its surface; for (nearly) coplanar points, the smallest of the
+/// balls through three of them that holds the fourth.
+Ball through(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+             const Eigen::Vector3d& d) {
+  Eigen::Matrix3d m;
+  m.row(0) = (b - a).transpose();
+  m.row(1) = (c - a).transpose();
+  m.row(2) = (d - a).transpose();
+  const double det = m.determinant();
+  const double scale = m.row(0).norm() * m.row(1).norm() * m.row(2).norm();
+  if (std::abs(det) <= 1e-12 * scale) {
+    Ball best;
+    best.r2 = std::numeric_limits<double>::infinity();
+    const Eigen::Vector3d p[4] = {a, b, c, d};
+    for (int skip = 0; skip < 4; ++skip) {
+      Eigen::Vector3d q[3];
+      for (int i = 0, k = 0; i < 4; ++i) {
+        if (i != skip) q[k++] = p[i];
+      }
+      const Ball x = through(q[0], q[1], q[2]);
+      if (x.contains(p[skip]) && x.r2 < best.r2) best = x;
+    }
+    return best;
+  }
+  const Eigen::Vector3d rhs(0.5 * m.row(0).squaredNorm(), 0.5 * m.row(1).squaredNorm(),
+                            0.5 * m.row(2).squaredNorm());
+  const Eigen::Vector3d centre = a + m.partialPivLu().solve(rhs);
+  return {centre, (a - centre).squaredNorm()};
+}
+
+/// Distances from points to the surface of their convex hull, by Qhull (reentrant C API).
+/// Returns false when Qhull finds no full-dimensional hull (flat or too few points).
+bool hullDistances(const std::vector<double>& xyz, std::vector<double>* distances) {
+  const int n = static_cast<int>(xyz.size() / 3);
+  if (n < 4) return false;
+  qhT qh_storage;
+  qhT* qh = &qh_storage;
+  QHULL_LIB_CHECK
+  qh_zero(qh, nullptr);
+  // Qt: triangulated output. Qhull reports a flat input on its error stream: discarded.
+  char options[] = "qhull Qt";
+  std::FILE* sink = std::fopen("/dev/null", "w");
+  const int error =
+      qh_new_qhull(qh, 3, n, const_cast<double*>(xyz.data()), False, options, nullptr, sink);
+  bool ok = error == 0;
+  if (ok) {
+    struct Plane {
+      double nx, ny, nz, offset;
+    };
+    std::vector<Plane> planes;
+    facetT* facet;
+    FORALLfacets {
+      planes.push_back({facet->normal[0], facet->normal[1], facet->normal[2], facet->offset});
+    }
+    distances->resize(static_cast<std::size_t>(n));
+    for (int i = 0; i < n; ++i) {
+      const double* p = &xyz[3 * static_cast<std::size_t>(i)];
+      // Inside a convex polytope, the distance to its surface is the distance to the nearest
+      // facet plane (outward normals: n . p + offset <= 0 inside).
+      double d = std::numeric_limits<double>::infinity();
+      for (const Plane& f : planes) {
+        d = std::min(d, -(f.nx * p[0] + f.ny * p[1] + f.nz * p[2] + f.offset));
+      }
+      (*distances)[static_cast<std::size_t>(i)] = std::max(0.0, d);
+    }
+  }
+  qh_freeqhull(qh, !qh_ALL);
+  int curlong = 0, totlong = 0;
+  qh_memfreeshort(qh, &curlong, &totlong);
+  if (sink) std::fclose(sink);
+  return ok;
+}
+
+}  // namespace
+
+Sphere smallestEnclosingSphere(std::vector<Eigen::Vector3d> p) {
+  if (p.empty()) throw std::invalid_argument("the smallest enclosing sphere of no points");
+  // A fixed seed: the same segment always gets the same sphere.
+  std::mt19937 random(12345);
+  std::shuffle(p.begin(), p.end(), random);
+  Ball b{p[0], 0.0};
+  for (std::size_t i = 1; i < p.size(); ++i) {
+    if (b.contains(p[i])) continue;
+    b = {p[i], 0.0};
+    for (std::size_t j = 0; j < i; ++j) {
+      if (b.contains(p[j])) continue;
+      b = through(p[i], p[j]);
+      for (std::size_t k = 0; k < j; ++k) {
+        if (b.contains(p[k])) continue;
+        b = through(p[i], p[j], p[k]);
+        for (std::size_t l = 0; l < k; ++l) {
+          if (!b.contains(p[l])) b = through(p[i], p[j], p[k], p[l]);
+        }
+      }
+    }
+  }
+  return {b.c, std::sqrt(b.r2)};
+}
+
+VertexEdges vertexEdges(const MeshGraph& graph) {
+  VertexEdges out;
+  out.offsets.assign(graph.vertex_count + 1, 0);
+  for (const MeshEdge& e : graph.edges) {
+    ++out.offsets[static_cast<std::size_t>(e.a) + 1];
+    ++out.offsets[static_cast<std::size_t>(e.b) + 1];
+  }
+  std::partial_sum(out.offsets.begin(), out.offsets.end(), out.offsets.begin());
+  out.edges.resize(out.offsets.back());
+  std::vector<std::size_t> fill(out.offsets.begin(), out.offsets.end() - 1);
+  for (std::size_t e = 0; e < graph.edges.size(); ++e) {
+    out.edges[fill[static_cast<std::size_t>(graph.edges[e].a)]++] = static_cast<std::int32_t>(e);
+    out.edges[fill[static_cast<std::size_t>(graph.edges[e].b)]++] = static_cast<std::int32_t>(e);
+  }
+  return out;
+}
+
+double compactness(const TriangleMesh& mesh, const Segment& segment) {
+  std::vector<char> inside(mesh.positions.size(), 0);
+  std::vector<Eigen::Vector3d> points;
+  points.reserve(segment.vertices.size());
+  for (std::int32_t v : segment.vertices) {
+    inside[static_cast<std::size_t>(v)] = 1;
+    points.push_back(mesh.positions[static_cast<std::size_t>(v)].cast<double>());
+  }
+  double area = 0.0;
+  for (const Eigen::Vector3i& t : mesh.triangles) {
+    if (!inside[static_cast<std::size_t>(t[0])] || !inside[static_cast<std::size_t>(t[1])] ||
+        !inside[static_cast<std::size_t>(t[2])]) {
+      continue;
+    }
+    const Eigen::Vector3d a = mesh.positions[static_cast<std::size_t>(t[0])].cast<double>();
+    const Eigen::Vector3d b = mesh.positions[static_cast<std::size_t>(t[1])].cast<double>();
+    const Eigen::Vector3d c = mesh.positions[static_cast<std::size_t>(t[2])].cast<double>();
+    area += 0.5 * (b - a).cross(c - a).norm();
+  }
+  const Sphere s = smallestEnclosingSphere(std::move(points));
+  return s.radius > 0.0 ? area / (4.0 * M_PI * s.radius * s.radius) : 0.0;
+}
+
+double localConvexity(const MeshGraph& graph, const VertexEdges& by_vertex,
+                      const Segment& segment) {
+  const auto inSegment = [&](std::int32_t v) {
+    return std::binary_search(segment.vertices.begin(), segment.vertices.end(), v);
+  };
+  std::size_t edges = 0, convex = 0;
+  for (std::int32_t v : segment.vertices) {
+    const auto vi = static_cast<std::size_t>(v);
+    for (std::size_t k = by_vertex.offsets[vi]; k < by_vertex.offsets[vi + 1]; ++k) {
+      const MeshEdge& e = graph.edges[static_cast<std::size_t>(by_vertex.edges[k])];
+      // Each edge once: from its smaller end, when the larger one is in the segment too.
+      if (e.a != v || !inSegment(e.b)) continue;
+      ++edges;
+      convex += e.convex ? 1 : 0;
+    }
+  }
+  return edges > 0 ? static_cast<double>(convex) / static_cast<double>(edges) : 0.0;
+}
+
+double hullDistance(const TriangleMesh& mesh, const Segment& segment) {
+  std::vector<double> xyz;
+  xyz.reserve(3 * segment.vertices.size());
+  for (std::int32_t v : segment.vertices) {
+    const Eigen::Vector3f& p = mesh.positions[static_cast<std::size_t>(v)];
+    // Relative to the centroid: Qhull's precision is relative to the coordinates' magnitude.
+    for (int k = 0; k < 3; ++k) xyz.push_back(static_cast<double>(p[k] - segment.centroid[k]));
+  }
+  std::vector<double> d;
+  if (!hullDistances(xyz, &d)) return 0.0;
+  return std::accumulate(d.begin(), d.end(), 0.0) / static_cast<double>(d.size());
+}
+
+}  // namespace objscan::discovery

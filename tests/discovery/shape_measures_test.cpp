@@ -1,0 +1,154 @@
+// Compactness, local and global convexity on shapes whose answers are known: a sphere is compact
+// and convex; a flat sheet is neither; an L-shaped bracket is locally concave at its fold; a
+// torus is not globally convex.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <functional>
+#include <stdexcept>
+#include <vector>
+
+#include "objscan/discovery/shape_measures.h"
+
+namespace objscan::discovery {
+namespace {
+
+constexpr float kPi = static_cast<float>(M_PI);
+
+/// A (u, v) grid of n x m vertices mapped through f, two triangles per cell, optionally wrapping
+/// around in u and v; normals from the triangles (their winding sets the side).
+TriangleMesh parametric(int n, int m, bool wrap_u, bool wrap_v,
+                        const std::function<Eigen::Vector3f(float, float)>& f) {
+  TriangleMesh mesh;
+  for (int j = 0; j < m; ++j) {
+    for (int i = 0; i < n; ++i) {
+      mesh.positions.push_back(f(static_cast<float>(i) / static_cast<float>(wrap_u ? n : n - 1),
+                                 static_cast<float>(j) / static_cast<float>(wrap_v ? m : m - 1)));
+    }
+  }
+  const int cells_u = wrap_u ? n : n - 1, cells_v = wrap_v ? m : m - 1;
+  for (int j = 0; j < cells_v; ++j) {
+    for (int i = 0; i < cells_u; ++i) {
+      const int a = j * n + i, b = j * n + (i + 1) % n;
+      const int c = ((j + 1) % m) * n + (i + 1) % n, d = ((j + 1) % m) * n + i;
+      mesh.triangles.emplace_back(a, b, c);
+      mesh.triangles.emplace_back(a, c, d);
+    }
+  }
+  mesh.computeNormals();
+  return mesh;
+}
+
+/// A sphere of radius r: latitude rings between the poles, closed by two pole vertices.
+TriangleMesh sphere(float r) {
+  const int n = 48, m = 24;
+  TriangleMesh mesh = parametric(n, m, true, false, [&](float u, float v) {
+    const float theta = kPi * (0.02f + 0.96f * v), phi = 2.0f * kPi * u;
+    return Eigen::Vector3f(r * std::sin(theta) * std::cos(phi), r * std::sin(theta) * std::sin(phi),
+                           r * std::cos(theta));
+  });
+  const int north = static_cast<int>(mesh.positions.size()), south = north + 1;
+  mesh.positions.emplace_back(0, 0, r);
+  mesh.positions.emplace_back(0, 0, -r);
+  for (int i = 0; i < n; ++i) {
+    mesh.triangles.emplace_back(north, (i + 1) % n, i);
+    mesh.triangles.emplace_back(south, (m - 1) * n + i, (m - 1) * n + (i + 1) % n);
+  }
+  for (Eigen::Vector3i& t : mesh.triangles) std::swap(t[1], t[2]);  // outward
+  mesh.computeNormals();
+  return mesh;
+}
+
+TriangleMesh sheet(float side) {
+  return parametric(30, 30, false, false,
+                    [&](float u, float v) { return Eigen::Vector3f(side * u, side * v, 0.0f); });
+}
+
+/// Two 10 x 10 cm plates meeting at a right angle along the y axis; `inside` winds the triangles
+/// so that the normals face into the L (the fold is then concave), otherwise away from it.
+TriangleMesh bracket(bool inside) {
+  TriangleMesh mesh = parametric(41, 21, false, false, [](float u, float v) {
+    const float s = 0.2f * u;  // 0..0.1 along the floor plate, 0.1..0.2 up the wall plate
+    return s <= 0.1f ? Eigen::Vector3f(0.1f - s, 0.1f * v, 0.0f)
+                     : Eigen::Vector3f(0.0f, 0.1f * v, s - 0.1f);
+  });
+  if (inside) {
+    for (Eigen::Vector3i& t : mesh.triangles) std::swap(t[1], t[2]);
+    mesh.computeNormals();
+  }
+  return mesh;
+}
+
+TriangleMesh torus(float big, float small) {
+  return parametric(64, 32, true, true, [&](float u, float v) {
+    const float a = 2.0f * kPi * u, b = 2.0f * kPi * v;
+    return Eigen::Vector3f((big + small * std::cos(b)) * std::cos(a),
+                           (big + small * std::cos(b)) * std::sin(a), small * std::sin(b));
+  });
+}
+
+Segment whole(const TriangleMesh& mesh) {
+  std::vector<std::int32_t> v(mesh.positions.size());
+  for (std::size_t i = 0; i < v.size(); ++i) v[i] = static_cast<std::int32_t>(i);
+  return describeSegment(mesh, v);
+}
+
+TEST(SmallestEnclosingSphere, OfKnownPointSets) {
+  // The 8 corners of a cube of side 2: radius sqrt(3) about the centre.
+  std::vector<Eigen::Vector3d> cube;
+  for (int i = 0; i < 8; ++i) cube.emplace_back(i & 1 ? 1 : -1, i & 2 ? 1 : -1, i & 4 ? 5 : 3);
+  Sphere s = smallestEnclosingSphere(cube);
+  EXPECT_NEAR(s.radius, std::sqrt(3.0), 1e-9);
+  EXPECT_TRUE(s.centre.isApprox(Eigen::Vector3d(0, 0, 4), 1e-9));
+  // An obtuse triangle: the sphere spans its longest side, not its circumcircle.
+  s = smallestEnclosingSphere({{0, 0, 0}, {4, 0, 0}, {2, 0.5, 0}});
+  EXPECT_NEAR(s.radius, 2.0, 1e-9);
+  // Many coplanar points on a circle, and its centre.
+  std::vector<Eigen::Vector3d> ring{{0, 0, 0}};
+  for (int k = 0; k < 100; ++k) ring.emplace_back(std::cos(0.1 * k), std::sin(0.1 * k), 0);
+  EXPECT_NEAR(smallestEnclosingSphere(ring).radius, 1.0, 1e-9);
+  EXPECT_THROW(smallestEnclosingSphere({}), std::invalid_argument);
+}
+
+TEST(ShapeMeasures, CompactnessOfASphereAndASheet) {
+  const TriangleMesh ball = sphere(0.05f);
+  // The polyhedron's area falls short of the sphere's by under 1 %.
+  EXPECT_NEAR(compactness(ball, whole(ball)), 1.0, 0.01);
+  const TriangleMesh flat = sheet(0.2f);
+  EXPECT_NEAR(compactness(flat, whole(flat)), 1.0 / (2.0 * M_PI), 1e-4);
+}
+
+TEST(ShapeMeasures, LocalConvexityOfASphereASheetAndABracket) {
+  const TriangleMesh ball = sphere(0.05f);
+  ASSERT_GT(ball.normals[0].dot(ball.positions[0]), 0.0f);  // outward
+  const MeshGraph g = buildMeshGraph(ball);
+  EXPECT_DOUBLE_EQ(localConvexity(g, vertexEdges(g), whole(ball)), 1.0);
+  const TriangleMesh flat = sheet(0.2f);
+  const MeshGraph gf = buildMeshGraph(flat);
+  EXPECT_DOUBLE_EQ(localConvexity(gf, vertexEdges(gf), whole(flat)), 0.0);
+  // The fold's edges (and their neighbours' tilted normals) are concave seen from inside the L
+  // and convex seen from outside; the flat rest is neither.
+  const TriangleMesh in_l = bracket(true), out_l = bracket(false);
+  ASSERT_GT(in_l.normals[0].z(), 0.0f);  // the floor plate's normals point up, into the L
+  const MeshGraph gi = buildMeshGraph(in_l), go = buildMeshGraph(out_l);
+  EXPECT_DOUBLE_EQ(localConvexity(gi, vertexEdges(gi), whole(in_l)), 0.0);
+  const double outside = localConvexity(go, vertexEdges(go), whole(out_l));
+  EXPECT_GT(outside, 0.0);
+  EXPECT_LT(outside, 0.1);
+}
+
+TEST(ShapeMeasures, GlobalConvexityOfASphereASheetAndATorus) {
+  const TriangleMesh ball = sphere(0.05f);
+  EXPECT_LT(hullDistance(ball, whole(ball)), 1e-6);
+  const TriangleMesh flat = sheet(0.2f);
+  EXPECT_EQ(hullDistance(flat, whole(flat)), 0.0);  // flat: no 3D hull, no distance
+  // A torus's outer half (cos b > 0) lies on its hull; a point of the inner half is nearest the
+  // flat cap over the hole, r (1 - |sin b|) away. Over vertices uniform in (a, b) the mean is
+  // r (1 - 2 / pi) / 2: 3.6 mm for r = 2 cm.
+  const TriangleMesh ring = torus(0.06f, 0.02f);
+  EXPECT_NEAR(hullDistance(ring, whole(ring)), 0.02 * (1.0 - 2.0 / M_PI) / 2.0, 2e-4);
+}
+
+}  // namespace
+}  // namespace objscan::discovery
