@@ -10,6 +10,8 @@
 
 #include <Eigen/Geometry>
 
+#include "point_index.h"
+
 extern "C" {
 #include <libqhull_r/qhull_ra.h>
 }
@@ -218,6 +220,105 @@ double hullDistance(const TriangleMesh& mesh, const Segment& segment) {
   std::vector<double> d;
   if (!hullDistances(xyz, &d)) return 0.0;
   return std::accumulate(d.begin(), d.end(), 0.0) / static_cast<double>(d.size());
+}
+
+namespace {
+
+struct OrientedPoints {
+  std::vector<Eigen::Vector3f> p;  ///< relative to the segment's centroid
+  std::vector<Eigen::Vector3f> n;
+};
+
+OrientedPoints orientedPoints(const TriangleMesh& mesh, const Segment& segment) {
+  if (!mesh.hasNormals()) throw std::invalid_argument("the mesh has no vertex normals");
+  OrientedPoints out;
+  out.p.reserve(segment.vertices.size());
+  out.n.reserve(segment.vertices.size());
+  for (std::int32_t v : segment.vertices) {
+    out.p.push_back(mesh.positions[static_cast<std::size_t>(v)] - segment.centroid);
+    out.n.push_back(mesh.normals[static_cast<std::size_t>(v)]);
+  }
+  return out;
+}
+
+/// The one-sided overlap O(from, to, r): mean over `from` of the distance to the nearest point
+/// of `to` over r, plus beta (1 - the cosine between their normals).
+double overlap(const OrientedPoints& from, const OrientedPoints& to, const PointIndex& to_index,
+               float r, float beta) {
+  double sum = 0.0;
+  for (std::size_t i = 0; i < from.p.size(); ++i) {
+    const std::uint32_t j = to_index.nearest(from.p[i]);
+    sum += (from.p[i] - to.p[j]).norm() / r + beta * (1.0f - from.n[i].dot(to.n[j]));
+  }
+  return sum / static_cast<double>(from.p.size());
+}
+
+}  // namespace
+
+double symmetry(const TriangleMesh& mesh, const Segment& segment, float beta) {
+  const OrientedPoints original = orientedPoints(mesh, segment);
+  const float lambda_sum = segment.eigenvalues.sum();
+  if (!(lambda_sum > 0.0f)) return 0.0;
+  const PointIndex original_index(original.p);
+  double total = 0.0;
+  for (int d = 0; d < 3; ++d) {
+    const float r = segment.extents[d];
+    if (!(r > 0.0f)) continue;
+    const Eigen::Vector3f a = segment.axes.col(d);
+    OrientedPoints mirrored;
+    mirrored.p.reserve(original.p.size());
+    mirrored.n.reserve(original.n.size());
+    for (std::size_t i = 0; i < original.p.size(); ++i) {
+      mirrored.p.push_back(original.p[i] - 2.0f * original.p[i].dot(a) * a);
+      mirrored.n.push_back(original.n[i] - 2.0f * original.n[i].dot(a) * a);
+    }
+    const PointIndex mirrored_index(mirrored.p);
+    const double both = overlap(original, mirrored, mirrored_index, r, beta) +
+                        overlap(mirrored, original, original_index, r, beta);
+    total += static_cast<double>(segment.eigenvalues[d] / lambda_sum) * both;
+  }
+  return total;
+}
+
+double smoothness(const TriangleMesh& mesh, const Segment& segment, float radius_m, int bins) {
+  if (!(radius_m > 0.0f) || bins < 2) {
+    throw std::invalid_argument("smoothness needs a positive radius and at least 2 bins");
+  }
+  const OrientedPoints pts = orientedPoints(mesh, segment);
+  const PointIndex index(pts.p);
+  std::vector<std::pair<std::uint32_t, float>> found;
+  std::vector<int> histogram(static_cast<std::size_t>(bins));
+  const double log_bins = std::log(static_cast<double>(bins));
+  double sum = 0.0;
+  for (std::size_t i = 0; i < pts.p.size(); ++i) {
+    const Eigen::Vector3f& n = pts.n[i];
+    // A tangent frame (t1, t2) at the vertex.
+    const Eigen::Vector3f helper =
+        std::abs(n.x()) < 0.9f ? Eigen::Vector3f::UnitX() : Eigen::Vector3f::UnitY();
+    const Eigen::Vector3f t1 = n.cross(helper).normalized();
+    const Eigen::Vector3f t2 = n.cross(t1);
+    index.within(pts.p[i], radius_m, &found);
+    std::fill(histogram.begin(), histogram.end(), 0);
+    int count = 0;
+    for (const auto& [j, distance_sq] : found) {
+      if (j == i) continue;
+      const Eigen::Vector3f d = pts.p[j] - pts.p[i];
+      const float angle = std::atan2(d.dot(t2), d.dot(t1));  // (-pi, pi]
+      int bin = static_cast<int>((angle + static_cast<float>(M_PI)) /
+                                 (2.0f * static_cast<float>(M_PI)) * static_cast<float>(bins));
+      bin = std::clamp(bin, 0, bins - 1);
+      ++histogram[static_cast<std::size_t>(bin)];
+      ++count;
+    }
+    double entropy = 0.0;
+    for (int c : histogram) {
+      if (c == 0) continue;
+      const double q = static_cast<double>(c) / count;
+      entropy -= q * std::log(q);
+    }
+    sum += entropy / log_bins;
+  }
+  return sum / static_cast<double>(pts.p.size());
 }
 
 }  // namespace objscan::discovery

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <stdexcept>
@@ -148,6 +149,52 @@ TEST(ShapeMeasures, GlobalConvexityOfASphereASheetAndATorus) {
   // r (1 - 2 / pi) / 2: 3.6 mm for r = 2 cm.
   const TriangleMesh ring = torus(0.06f, 0.02f);
   EXPECT_NEAR(hullDistance(ring, whole(ring)), 0.02 * (1.0 - 2.0 / M_PI) / 2.0, 2e-4);
+}
+
+TEST(ShapeMeasures, SymmetryOfASphereAndOfALopsidedShape) {
+  const TriangleMesh ball = sphere(0.05f);
+  const double round = symmetry(ball, whole(ball));
+  // Its mirror images coincide with it up to the sampling (vertices 3-6 mm apart on a 5 cm
+  // sphere): a few hundredths.
+  EXPECT_LT(round, 0.05);
+  // A sheet bent up along one edge only (a J in profile): no mirror plane maps it onto itself.
+  const TriangleMesh hook = parametric(40, 20, false, false, [](float u, float v) {
+    const float x = 0.2f * u;
+    return Eigen::Vector3f(x, 0.08f * v,
+                           x > 0.15f ? 2.0f * (x - 0.15f) * (x - 0.15f) * 40.0f : 0.0f);
+  });
+  EXPECT_GT(symmetry(hook, whole(hook)), 4.0 * round);
+}
+
+TEST(ShapeMeasures, SmoothnessOfASheetAndOfAThinStrip) {
+  // A 20 cm sheet with vertices 2.5 mm apart: about 50 neighbours within 1 cm, all round.
+  const TriangleMesh wide = parametric(81, 81, false, false, [](float u, float v) {
+    return Eigen::Vector3f(0.2f * u, 0.2f * v, 0.0f);
+  });
+  EXPECT_GT(smoothness(wide, whole(wide)), 0.9);
+  // A strip 2.5 mm wide (two vertex rows): neighbours ahead, behind and to one side.
+  const TriangleMesh strip = parametric(81, 2, false, false, [](float u, float v) {
+    return Eigen::Vector3f(0.2f * u, 0.0025f * v, 0.0f);
+  });
+  EXPECT_LT(smoothness(strip, whole(strip)), 0.75);
+  // A wire (one row of vertices 3 mm apart, normals up): a vertex has b neighbours behind and a
+  // ahead within 1 cm (up to 3 each way), in two opposite bins, so its entropy is that of the
+  // split b : a, in units of log 8.
+  TriangleMesh wire;
+  const int n = 81;
+  for (int i = 0; i < n; ++i) {
+    wire.positions.emplace_back(0.003f * static_cast<float>(i), 0.0f, 0.0f);
+    wire.normals.emplace_back(0.0f, 0.0f, 1.0f);
+  }
+  double expected = 0.0;
+  for (int i = 0; i < n; ++i) {
+    const double b = std::min(i, 3), a = std::min(n - 1 - i, 3);
+    for (double share : {b / (a + b), a / (a + b)}) {
+      if (share > 0.0) expected -= share * std::log(share) / std::log(8.0) / n;
+    }
+  }
+  EXPECT_NEAR(smoothness(wire, whole(wire)), expected, 1e-9);
+  EXPECT_THROW(smoothness(wide, whole(wide), 0.0f), std::invalid_argument);
 }
 
 }  // namespace

@@ -9,8 +9,8 @@
 #include "objscan/discovery/mesh_graph.h"
 #include "objscan/discovery/segment.h"
 
-/// The paper's intrinsic shape measures of a segment (section IV-B) that need no neighbour
-/// search: compactness, local convexity and global convexity.
+/// The paper's five intrinsic shape measures of a segment (section IV-B): compactness, symmetry,
+/// smoothness, local convexity and global convexity.
 namespace objscan::discovery {
 
 struct Sphere {
@@ -40,5 +40,21 @@ double localConvexity(const MeshGraph& graph, const VertexEdges& by_vertex, cons
 /// Global convexity: the mean distance, metres, from the segment's vertices to the surface of
 /// their convex hull (Qhull); 0 when every vertex lies on the hull, or the vertices are flat.
 double hullDistance(const TriangleMesh& mesh, const Segment& segment);
+
+/// Symmetry: for each principal axis d, the segment reflected through the plane across d at its
+/// centroid is compared with the original both ways; each one-sided overlap O(C1, C2, r) is the
+/// mean over C1's vertices of |p - nearest p' in C2| / r + beta (1 - n . n'), with r the extent
+/// along d. The sides are summed and weighted by lambda_d / (lambda_0 + lambda_1 + lambda_2).
+/// A distance: 0 for a shape that is its own mirror image about all three planes, larger the
+/// less symmetric. (The paper writes a sum over C1; the mean makes segments of different vertex
+/// counts comparable.)
+double symmetry(const TriangleMesh& mesh, const Segment& segment, float beta = 0.2f);
+
+/// Smoothness: at each vertex, the segment's other vertices within `radius` are projected onto
+/// its tangent plane, their directions quantised into `bins` angular bins, and the entropy of that
+/// histogram taken, in units of log(bins) (so 1 = spread evenly all round, 0 = no neighbour or
+/// all in one direction); the mean over the vertices.
+double smoothness(const TriangleMesh& mesh, const Segment& segment, float radius_m = 0.01f,
+                  int bins = 8);
 
 }  // namespace objscan::discovery
