@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <limits>
+#include <numeric>
 #include <stdexcept>
 #include <string>
 
@@ -108,6 +109,34 @@ double vertexIoU(const std::vector<std::int32_t>& a, const std::vector<std::int3
   }
   const std::size_t unite = a.size() + b.size() - common;
   return unite > 0 ? static_cast<double>(common) / static_cast<double>(unite) : 0.0;
+}
+
+std::vector<std::size_t> suppressOverlaps(const std::vector<Segment>& segments,
+                                          const std::vector<double>& scores, double max_iou) {
+  if (segments.size() != scores.size()) {
+    throw std::invalid_argument("suppressOverlaps: one score per segment is needed");
+  }
+  std::vector<std::size_t> order(segments.size());
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return scores[a] > scores[b]; });
+  std::vector<std::size_t> kept;
+  for (std::size_t i : order) {
+    const Segment& s = segments[i];
+    bool overlaps = false;
+    for (std::size_t k : kept) {
+      const Segment& t = segments[k];
+      // Disjoint index ranges share no vertex: skip the merge walk.
+      if (s.vertices.back() < t.vertices.front() || t.vertices.back() < s.vertices.front())
+        continue;
+      if (vertexIoU(s.vertices, t.vertices) > max_iou) {
+        overlaps = true;
+        break;
+      }
+    }
+    if (!overlaps) kept.push_back(i);
+  }
+  return kept;
 }
 
 }  // namespace objscan::discovery

@@ -85,5 +85,21 @@ TEST(Segment, CandidatesKeepLargeEnoughSegmentsThatPassAndIoUCountsSharedVertice
   EXPECT_DOUBLE_EQ(vertexIoU({1}, {2}), 0.0);
 }
 
+TEST(Segment, SuppressionKeepsTheBetterOfOverlappingSegments) {
+  const auto range = [](std::int32_t from, std::int32_t to) {
+    Segment s;
+    for (std::int32_t v = from; v < to; ++v) s.vertices.push_back(v);
+    return s;
+  };
+  // A and B share 90 of 100 vertices (IoU 0.9); C is apart; D overlaps B by IoU 0.25 only.
+  const std::vector<Segment> segments = {range(0, 100), range(0, 90), range(200, 300),
+                                         range(60, 120)};
+  const std::vector<std::size_t> kept = suppressOverlaps(segments, {0.5, 0.8, 0.1, 0.3});
+  EXPECT_EQ(kept, (std::vector<std::size_t>{1, 3, 2}));
+  // Exactly at the threshold is not "more similar than" it.
+  EXPECT_EQ(suppressOverlaps({range(0, 10), range(0, 7)}, {1.0, 0.5}, 0.7).size(), 2u);
+  EXPECT_THROW(suppressOverlaps(segments, {1.0}), std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace objscan::discovery

@@ -52,4 +52,11 @@ std::vector<Segment> candidateSegments(const TriangleMesh& mesh,
 /// Intersection over union of two increasing vertex-index lists.
 double vertexIoU(const std::vector<std::int32_t>& a, const std::vector<std::int32_t>& b);
 
+/// Greedy non-maximum suppression (the paper's, IoU threshold 0.7): the segments are taken in
+/// decreasing score, and one whose vertex-set IoU with a segment already kept exceeds `max_iou`
+/// is dropped. Returns the indices kept, best first (ties keep the lower index first). Throws
+/// std::invalid_argument when the two lists differ in length.
+std::vector<std::size_t> suppressOverlaps(const std::vector<Segment>& segments,
+                                          const std::vector<double>& scores, double max_iou = 0.7);
+
 }  // namespace objscan::discovery
