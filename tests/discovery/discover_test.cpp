@@ -1,0 +1,105 @@
+// The whole per-scene discovery on a table with two objects on it, and on a bare table.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <vector>
+
+#include "objscan/discovery/discover.h"
+
+namespace objscan::discovery {
+namespace {
+
+/// A 1.2 x 1.2 m table top (4 mm grid; larger than 1 m, so the hard filter drops it) with,
+/// optionally, two smooth 4 cm tall mounds: a round one of radius 6 cm and an elongated one of
+/// 6 x 10 cm, each joined to the table by a concave foot.
+TriangleMesh table(bool with_objects) {
+  const int n = 301;
+  const auto mound = [](float x, float y, float sx, float sy) {
+    const float r = std::sqrt(x * x / (sx * sx) + y * y / (sy * sy));
+    const float t = std::clamp((1.0f - r) / 0.4f, 0.0f, 1.0f);
+    return 0.04f * t * t * (3.0f - 2.0f * t);
+  };
+  TriangleMesh mesh;
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      const float x = -0.6f + 1.2f * static_cast<float>(i) / (n - 1);
+      const float y = -0.6f + 1.2f * static_cast<float>(j) / (n - 1);
+      const float z = with_objects ? std::max(mound(x + 0.15f, y, 0.06f, 0.06f),
+                                              mound(x - 0.15f, y + 0.05f, 0.06f, 0.10f))
+                                   : 0.0f;
+      mesh.positions.emplace_back(x, y, z);
+    }
+  }
+  for (int j = 0; j + 1 < n; ++j) {
+    for (int i = 0; i + 1 < n; ++i) {
+      const int v = j * n + i;
+      mesh.triangles.emplace_back(v, v + 1, v + n + 1);
+      mesh.triangles.emplace_back(v, v + n + 1, v + n);
+    }
+  }
+  mesh.computeNormals();
+  return mesh;
+}
+
+/// The vertices of the mound around (cx, cy): raised above the table.
+std::vector<std::int32_t> moundVertices(const TriangleMesh& mesh, float cx) {
+  std::vector<std::int32_t> v;
+  for (std::size_t i = 0; i < mesh.positions.size(); ++i) {
+    const Eigen::Vector3f& p = mesh.positions[i];
+    if (p.z() > 1e-3f && (p.x() < 0.0f) == (cx < 0.0f)) v.push_back(static_cast<std::int32_t>(i));
+  }
+  return v;
+}
+
+TEST(Discover, FindsBothObjectsOnATableAndRanksThemFirst) {
+  const TriangleMesh mesh = table(true);
+  DiscoveryTimings timings;
+  const std::vector<Hypothesis> h = discoverObjects(mesh, DiscoveryConfig{}, &timings);
+  ASSERT_GE(h.size(), 2u);
+  const auto round = moundVertices(mesh, -0.15f), long_one = moundVertices(mesh, 0.15f);
+  // The two best hypotheses are the two mounds, in either order, each cut out well.
+  const double a =
+      std::max(vertexIoU(h[0].segment.vertices, round), vertexIoU(h[0].segment.vertices, long_one));
+  const double b =
+      std::max(vertexIoU(h[1].segment.vertices, round), vertexIoU(h[1].segment.vertices, long_one));
+  EXPECT_GE(a, 0.7);
+  EXPECT_GE(b, 0.7);
+  EXPECT_NE(vertexIoU(h[0].segment.vertices, round) > 0.5,
+            vertexIoU(h[1].segment.vertices, round) > 0.5);
+  for (std::size_t i = 1; i < h.size(); ++i) EXPECT_GE(h[i - 1].score, h[i].score);
+  EXPECT_GT(h[0].measures.local_convexity, 0.3);
+  EXPECT_GE(timings.segment_ms, 0.0);
+}
+
+TEST(Discover, ABareTableHasNoCandidatesAndAMeshWithoutNormalsIsRejected) {
+  EXPECT_TRUE(discoverObjects(table(false), DiscoveryConfig{}).empty());
+  TriangleMesh no_normals = table(true);
+  no_normals.normals.clear();
+  EXPECT_THROW(discoverObjects(no_normals, DiscoveryConfig{}), std::invalid_argument);
+}
+
+TEST(Discover, AverageScoreZNormalisesAndOrientsTheMeasures) {
+  ShapeMeasures good, bad;
+  good.compactness = 0.5;
+  good.symmetry = 0.1;  // more symmetric
+  good.smoothness = 0.9;
+  good.local_convexity = 0.8;
+  good.global_convexity = 0.001;  // closer to its hull
+  bad = good;
+  bad.compactness = 0.1;
+  bad.symmetry = 0.5;
+  bad.smoothness = 0.5;
+  bad.local_convexity = 0.2;
+  bad.global_convexity = 0.02;
+  const std::vector<double> s = averageScores({good, bad});
+  // Two candidates: every measure z-normalises to +1 for the better and -1 for the worse.
+  EXPECT_DOUBLE_EQ(s[0], 1.0);
+  EXPECT_DOUBLE_EQ(s[1], -1.0);
+  EXPECT_TRUE(averageScores({}).empty());
+}
+
+}  // namespace
+}  // namespace objscan::discovery
