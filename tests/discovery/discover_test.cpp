@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "objscan/discovery/discover.h"
+#include "test_support.h"
 
 namespace objscan::discovery {
 namespace {
@@ -16,32 +17,16 @@ namespace {
 /// optionally, two smooth 4 cm tall mounds: a round one of radius 6 cm and an elongated one of
 /// 6 x 10 cm, each joined to the table by a concave foot.
 TriangleMesh table(bool with_objects) {
-  const int n = 301;
   const auto mound = [](float x, float y, float sx, float sy) {
     const float r = std::sqrt(x * x / (sx * sx) + y * y / (sy * sy));
     const float t = std::clamp((1.0f - r) / 0.4f, 0.0f, 1.0f);
     return 0.04f * t * t * (3.0f - 2.0f * t);
   };
-  TriangleMesh mesh;
-  for (int j = 0; j < n; ++j) {
-    for (int i = 0; i < n; ++i) {
-      const float x = -0.6f + 1.2f * static_cast<float>(i) / (n - 1);
-      const float y = -0.6f + 1.2f * static_cast<float>(j) / (n - 1);
-      const float z = with_objects ? std::max(mound(x + 0.15f, y, 0.06f, 0.06f),
-                                              mound(x - 0.15f, y + 0.05f, 0.06f, 0.10f))
-                                   : 0.0f;
-      mesh.positions.emplace_back(x, y, z);
-    }
-  }
-  for (int j = 0; j + 1 < n; ++j) {
-    for (int i = 0; i + 1 < n; ++i) {
-      const int v = j * n + i;
-      mesh.triangles.emplace_back(v, v + 1, v + n + 1);
-      mesh.triangles.emplace_back(v, v + n + 1, v + n);
-    }
-  }
-  mesh.computeNormals();
-  return mesh;
+  return testing::makeHeightField(301, 0.6f, [&](float x, float y) {
+    return with_objects ? std::max(mound(x + 0.15f, y, 0.06f, 0.06f),
+                                   mound(x - 0.15f, y + 0.05f, 0.06f, 0.10f))
+                        : 0.0f;
+  });
 }
 
 /// The vertices of the mound around (cx, cy): raised above the table.

@@ -12,31 +12,12 @@
 
 #include "objscan/discovery/mesh_graph.h"
 #include "objscan/discovery/segmentation.h"
+#include "test_support.h"
 
 namespace objscan::discovery {
 namespace {
 
-/// A height field z = f(x, y) over [-half, half]^2 on an n x n grid, two triangles per cell,
-/// counter-clockwise seen from above, with area-weighted vertex normals (pointing up).
-TriangleMesh heightField(int n, float half, const std::function<float(float, float)>& f) {
-  TriangleMesh mesh;
-  for (int j = 0; j < n; ++j) {
-    for (int i = 0; i < n; ++i) {
-      const float x = -half + 2.0f * half * static_cast<float>(i) / static_cast<float>(n - 1);
-      const float y = -half + 2.0f * half * static_cast<float>(j) / static_cast<float>(n - 1);
-      mesh.positions.emplace_back(x, y, f(x, y));
-    }
-  }
-  for (int j = 0; j + 1 < n; ++j) {
-    for (int i = 0; i + 1 < n; ++i) {
-      const int v = j * n + i;
-      mesh.triangles.emplace_back(v, v + 1, v + n + 1);
-      mesh.triangles.emplace_back(v, v + n + 1, v + n);
-    }
-  }
-  mesh.computeNormals();
-  return mesh;
-}
+using objscan::testing::makeHeightField;
 
 /// A 2 cm tall, flat-topped bump of radius 4 cm on a 20 x 20 cm table: its rim is convex, its
 /// foot (where it meets the table) concave.
@@ -65,7 +46,7 @@ TEST(MeshGraph, EdgeWeightsFollowEquationOne) {
 }
 
 TEST(MeshGraph, EveryTriangleEdgeOnceWithItsWeight) {
-  const TriangleMesh grid = heightField(3, 1.0f, [](float, float) { return 0.0f; });
+  const TriangleMesh grid = makeHeightField(3, 1.0f, [](float, float) { return 0.0f; });
   const MeshGraph graph = buildMeshGraph(grid);
   EXPECT_EQ(graph.vertex_count, 9u);
   // A 2 x 2-cell grid: 12 grid lines plus 4 diagonals.
@@ -82,7 +63,7 @@ TEST(MeshGraph, EveryTriangleEdgeOnceWithItsWeight) {
 }
 
 TEST(Segmentation, SplitsABumpFromItsTableAtTheConcaveFoot) {
-  const TriangleMesh mesh = heightField(81, 0.1f, bump);  // 2.5 mm spacing
+  const TriangleMesh mesh = makeHeightField(81, 0.1f, bump);  // 2.5 mm spacing
   const MeshGraph graph = buildMeshGraph(mesh);
   const Segmentation s = segmentGraph(graph, 0.5f, 50);
   // The bump's top and the table's corner end up apart; the top and the rim stay together.
@@ -110,7 +91,7 @@ TEST(Segmentation, SplitsABumpFromItsTableAtTheConcaveFoot) {
 }
 
 TEST(Segmentation, LargerScalesGiveFewerSegmentsAndSmallOnesAreMerged) {
-  const TriangleMesh mesh = heightField(61, 0.1f, [](float x, float y) {
+  const TriangleMesh mesh = makeHeightField(61, 0.1f, [](float x, float y) {
     return 0.01f * std::sin(60.0f * x) * std::cos(40.0f * y);  // a bumpy sheet
   });
   const MeshGraph graph = buildMeshGraph(mesh);

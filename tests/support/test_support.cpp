@@ -86,6 +86,26 @@ TriangleMesh makeCube(float side_m) {
   return m;
 }
 
+TriangleMesh makeHeightField(int n, float half, const std::function<float(float, float)>& f) {
+  TriangleMesh mesh;
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      const float x = -half + 2.0f * half * static_cast<float>(i) / static_cast<float>(n - 1);
+      const float y = -half + 2.0f * half * static_cast<float>(j) / static_cast<float>(n - 1);
+      mesh.positions.emplace_back(x, y, f(x, y));
+    }
+  }
+  for (int j = 0; j + 1 < n; ++j) {
+    for (int i = 0; i + 1 < n; ++i) {
+      const int v = j * n + i;
+      mesh.triangles.emplace_back(v, v + 1, v + n + 1);
+      mesh.triangles.emplace_back(v, v + n + 1, v + n);
+    }
+  }
+  mesh.computeNormals();
+  return mesh;
+}
+
 TriangleMesh makeRandomMesh(std::uint32_t seed, std::size_t vertices, std::size_t triangles,
                             bool with_normals, bool with_colors) {
   std::mt19937 rng(seed);

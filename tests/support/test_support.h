@@ -48,6 +48,10 @@ std::string readBytes(const std::filesystem::path& path);
 /// An axis-aligned cube of side `side_m` centred at the origin: 8 vertices, 12 outward triangles.
 TriangleMesh makeCube(float side_m = 1.0f);
 
+/// A height field z = f(x, y) over [-half, half]^2 on an n x n grid, two triangles per cell,
+/// counter-clockwise seen from above, with area-weighted vertex normals (pointing up).
+TriangleMesh makeHeightField(int n, float half, const std::function<float(float, float)>& f);
+
 /// A mesh with random positions (including awkward floats: tiny, huge, negative zero,
 /// subnormal), unit normals, colours with object labels, and random non-degenerate triangles;
 /// fixed seed.
