@@ -1,13 +1,15 @@
 // Fusion speed: objscan's KinectFusion loop and its stages next to Open3D's and OpenCV's on the
 // same frames, in the same run (see fusion_peers.h for what each peer runs).
 //
-//   fusion_bench [--folder DIR] [--frames N] [--voxel M ...] [--peers-at FIRST|all|none]
+//   fusion_bench [--folder DIR] [--frames N] [--voxel M ...] [--peers-at first|all|none]
+//                [--icp-iterations FINEST,MIDDLE,COARSEST] [--model-level L] [--finest-stride S]
 //                [--json PATH]
 //
 // DIR defaults to <data>/7scenes_300, N to all of its frames, the voxel sizes to 10 mm and
 // KinectFusion's 3 m / 512 (5.86 mm). Peers run at the first voxel size only unless --peers-at
 // all. Every stage is given the same depth range (0.3-3 m), truncation (30 mm) and, where there is
-// a pose solve, the same iterations per pyramid level.
+// a pose solve, the same iterations per pyramid level. --model-level and --finest-stride change
+// objscan's tracking settings (FusionConfig::model_level, TrackingConfig::finest_level_stride).
 //
 // What is timed, in milliseconds per frame:
 //   full loop  objscan only: Fusion::process on every frame, tracking from the first ground-truth
@@ -17,13 +19,16 @@
 //              intensity RGB-D images.
 //   track      the pose solve alone: objscan frame-to-model ICP (in the loop); OpenCV
 //              ICPOdometry::compute and Open3D's hybrid RGB-D odometry, frame to frame.
+//   tracking, all per-frame work: prepare + track, plus objscan's model raycast (in the loop),
+//              which frame-to-model ICP needs and frame-to-frame odometry does not.
 //   integrate  every frame into a fresh volume at its ground-truth pose.
-//   raycast    a 640x480 vertex and normal map from ground-truth poses (objscan without the
-//              depth hint the loop uses, so that it does the same work as OpenCV's).
+//   raycast    a 640x480 vertex and normal map from about 50 ground-truth poses, the same for
+//              objscan and OpenCV (objscan without the depth hint the loop uses, so that it does
+//              the same work as OpenCV's).
 //   mesh       once, the volume of all frames (Open3D's ExtractTriangleMesh).
 // Each system runs in its own process (this program again, with --child), so the kernel's
-// high-water mark gives its peak memory: the mark is reset after the frames are loaded, and the
-// table shows the peak above that baseline.
+// high-water mark gives its peak memory: the loader's freed memory is handed back, the mark is
+// reset after the frames are loaded, and the table shows the peak above that baseline.
 
 #include <malloc.h>
 #include <sys/wait.h>
