@@ -34,16 +34,7 @@ using objscan::testing::TempDir;
 
 constexpr std::size_t kFolderFrames = 24;
 
-Intrinsics smallCamera() {
-  Intrinsics in;
-  in.width_px = 160;
-  in.height_px = 120;
-  in.fx_px = 142.6;
-  in.fy_px = 142.6;
-  in.cx_px = 79.5;
-  in.cy_px = 59.5;
-  return in;
-}
+Intrinsics smallCamera() { return testing::centredCamera(160, 120, 142.6); }
 
 std::vector<RgbdFrame> readAll(FrameSource& source) {
   std::vector<RgbdFrame> frames;

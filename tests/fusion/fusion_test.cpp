@@ -23,9 +23,12 @@
 #include "objscan/fusion/raycast.h"
 #include "objscan/fusion/tsdf_volume.h"
 #include "objscan/render/synthetic_source.h"
+#include "test_support.h"
 
 namespace objscan::fusion {
 namespace {
+
+using testing::centredCamera;
 
 struct Sphere {
   Eigen::Vector3f centre;
@@ -42,16 +45,6 @@ struct Scene {
   std::vector<Sphere> spheres;
   std::vector<Plane> planes;
 };
-
-Intrinsics camera(int width, int height, double fx) {
-  Intrinsics in;
-  in.width_px = width;
-  in.height_px = height;
-  in.fx_px = in.fy_px = fx;
-  in.cx_px = (width - 1) / 2.0;
-  in.cy_px = (height - 1) / 2.0;
-  return in;
-}
 
 /// Exact depth (z in the camera frame) of the nearest surface per pixel; 0 where none.
 cv::Mat renderDepth(const Scene& scene, const Intrinsics& in, const Pose& T_W_C) {
@@ -107,7 +100,7 @@ float angleDeg(const Eigen::Matrix3f& a, const Eigen::Matrix3f& b) {
 // --- Volume --------------------------------------------------------------------------------------
 
 TEST(TsdfVolume, FrontoParallelPlaneHasExactSignedDistances) {
-  const Intrinsics in = camera(160, 120, 142.6);
+  const Intrinsics in = centredCamera(160, 120, 142.6);
   const Scene scene{{}, {{Eigen::Vector3f(0, 0, 1), 1.0f}}};
   VolumeConfig config;
   TsdfVolume volume(config);
@@ -128,7 +121,7 @@ TEST(TsdfVolume, FrontoParallelPlaneHasExactSignedDistances) {
 }
 
 TEST(TsdfVolume, BlocksAreAllocatedOnlyAroundTheSurface) {
-  const Intrinsics in = camera(160, 120, 142.6);
+  const Intrinsics in = centredCamera(160, 120, 142.6);
   const Scene scene{{}, {{Eigen::Vector3f(0, 0, 1), 1.0f}}};
   VolumeConfig config;
   TsdfVolume volume(config);
@@ -164,7 +157,7 @@ TEST(TsdfVolume, RejectsSettingsThatCannotWork) {
 // --- Raycasting ----------------------------------------------------------------------------------
 
 TEST(Raycast, FindsThePlaneAtItsDepthFacingTheCamera) {
-  const Intrinsics in = camera(160, 120, 142.6);
+  const Intrinsics in = centredCamera(160, 120, 142.6);
   const Scene scene{{}, {{Eigen::Vector3f(0, 0, 1), 1.0f}}};
   TsdfVolume volume(VolumeConfig{});
   const cv::Mat depth = renderDepth(scene, in, Pose::Identity());
@@ -185,7 +178,7 @@ TEST(Raycast, FindsThePlaneAtItsDepthFacingTheCamera) {
 TEST(Raycast, ReadingJustBehindTheSurfaceStillFindsTheFusedSurface) {
   // The plane sits 0.1 voxel past a voxel centre; the hint is 0.3 voxel behind it, so its nearest
   // voxel is still in front of the surface. The crossing is the fused surface, not the hint.
-  const Intrinsics in = camera(160, 120, 142.6);
+  const Intrinsics in = centredCamera(160, 120, 142.6);
   const VolumeConfig config;
   const float plane_z = (170.0f + 0.1f) * config.voxel_size_m;
   TsdfVolume volume(config);
@@ -203,7 +196,7 @@ TEST(Raycast, WithAHintTheCrossingNearestTheReadingIsFound) {
   // left half of the view (the wall's voxels behind it stay as they were). Without a hint a ray
   // finds the near plane; with the far wall's depth as its hint, it searches from there and
   // finds the wall: the hint is what the search starts from, not a mere speed-up.
-  const Intrinsics in = camera(160, 120, 142.6);
+  const Intrinsics in = centredCamera(160, 120, 142.6);
   TsdfVolume volume(VolumeConfig{});
   const cv::Mat far = renderDepth({{}, {{Eigen::Vector3f(0, 0, 1), 2.0f}}}, in, Pose::Identity());
   volume.integrate(far, {}, in, Pose::Identity());
@@ -220,7 +213,7 @@ TEST(Raycast, WithAHintTheCrossingNearestTheReadingIsFound) {
 // --- Marching cubes ------------------------------------------------------------------------------
 
 TEST(MarchingCubes, SphereSeenFromAllSidesIsClosedOutwardAndOnTheSurface) {
-  const Intrinsics in = camera(160, 120, 140.0);
+  const Intrinsics in = centredCamera(160, 120, 140.0);
   const Sphere sphere{Eigen::Vector3f(0.01f, -0.02f, 0.03f), 0.1f};
   const Scene scene{{sphere}, {}};
   VolumeConfig config;
@@ -291,7 +284,7 @@ Scene cornerWithBall() {
 }
 
 struct TrackingFixture {
-  Intrinsics in = camera(320, 240, 285.0);
+  Intrinsics in = centredCamera(320, 240, 285.0);
   FusionConfig config;
   TsdfVolume volume{VolumeConfig{}};
   ModelMaps model;
@@ -363,7 +356,7 @@ RgbdFrame frameOf(const cv::Mat& depth, const Intrinsics& in, double stamp) {
 }
 
 TEST(Fusion, LostFrameIsNotIntegratedAndTrackingResumesFromTheLastGoodPose) {
-  const Intrinsics in = camera(320, 240, 285.0);
+  const Intrinsics in = centredCamera(320, 240, 285.0);
   Fusion fusion(FusionConfig{}, in);
   const Scene scene = cornerWithBall();
   const Pose step = smallMotion();
@@ -387,7 +380,7 @@ TEST(Fusion, LostFrameIsNotIntegratedAndTrackingResumesFromTheLastGoodPose) {
 }
 
 TEST(Fusion, FramesWithoutUsableDepthAreSkipped) {
-  const Intrinsics in = camera(320, 240, 285.0);
+  const Intrinsics in = centredCamera(320, 240, 285.0);
   Fusion fusion(FusionConfig{}, in);
   const cv::Mat zeros(240, 320, CV_32FC1, cv::Scalar(0));
   const cv::Mat nans(240, 320, CV_32FC1, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
@@ -402,16 +395,16 @@ TEST(Fusion, FramesWithoutUsableDepthAreSkipped) {
 }
 
 TEST(Fusion, RejectsFramesAndSettingsThatDoNotFit) {
-  const Intrinsics in = camera(320, 240, 285.0);
+  const Intrinsics in = centredCamera(320, 240, 285.0);
   Fusion fusion(FusionConfig{}, in);
-  const Intrinsics small = camera(160, 120, 142.0);
+  const Intrinsics small = centredCamera(160, 120, 142.0);
   EXPECT_THROW(fusion.process(frameOf(cv::Mat(120, 160, CV_32FC1, cv::Scalar(1.0)), small, 0.0)),
                std::invalid_argument);
   FusionConfig bad;
   bad.volume.voxel_size_m = 0.0f;
   EXPECT_THROW(Fusion(bad, in), std::invalid_argument);
   // A 3-level pyramid needs sizes divisible by 4.
-  EXPECT_THROW(Fusion(FusionConfig{}, camera(322, 240, 285.0)), std::invalid_argument);
+  EXPECT_THROW(Fusion(FusionConfig{}, centredCamera(322, 240, 285.0)), std::invalid_argument);
   FusionConfig no_level;
   no_level.model_level = 3;  // beyond the 3-level pyramid
   EXPECT_THROW(Fusion(no_level, in), std::invalid_argument);
@@ -424,7 +417,7 @@ TEST(Fusion, RejectsFramesAndSettingsThatDoNotFit) {
 
 TEST(Fusion, TracksASyntheticHandHeldSequenceWithNoise) {
   // The step-B simulator (noise on) at 320x240: a desk with objects along a hand-held path.
-  const Intrinsics in = camera(320, 240, 285.15);
+  const Intrinsics in = centredCamera(320, 240, 285.15);
   render::SyntheticSource source(render::parseSynthSpec("synth:3,frames=45,objects=6"), in);
   const Trajectory& truth = *source.info().ground_truth;
   std::optional<Fusion> fusion;

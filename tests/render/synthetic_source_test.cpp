@@ -19,15 +19,7 @@ namespace fs = std::filesystem;
 
 /// A quarter of the Xtion's 640x480 camera: small enough for quick tests, large enough for
 /// every object of a 4-object scene to show.
-Intrinsics smallCamera() {
-  Intrinsics in;
-  in.fx_px = in.fy_px = 570.3 / 4;
-  in.cx_px = 79.5;
-  in.cy_px = 59.5;
-  in.width_px = 160;
-  in.height_px = 120;
-  return in;
-}
+Intrinsics smallCamera() { return testing::centredCamera(160, 120, 570.3 / 4); }
 
 /// Frames start, start + every, ... below end (none: to the last).
 capture::FrameSelection selectFrames(std::size_t start,

@@ -70,6 +70,16 @@ std::string readBytes(const fs::path& path) {
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
+Intrinsics centredCamera(int width, int height, double focal_px) {
+  Intrinsics in;
+  in.width_px = width;
+  in.height_px = height;
+  in.fx_px = in.fy_px = focal_px;
+  in.cx_px = (width - 1) / 2.0;
+  in.cy_px = (height - 1) / 2.0;
+  return in;
+}
+
 TriangleMesh makeCube(float side_m) {
   TriangleMesh m;
   const float h = side_m / 2;

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "objscan/core/intrinsics.h"
 #include "objscan/core/triangle_mesh.h"
 
 namespace objscan::testing {
@@ -44,6 +45,10 @@ class FileSizeLimit {
   void (*saved_handler_)(int) = nullptr;
 };
 std::string readBytes(const std::filesystem::path& path);
+
+/// A pinhole camera of the given size and focal length (fx = fy) with its principal point at the
+/// image centre, ((width - 1) / 2, (height - 1) / 2).
+Intrinsics centredCamera(int width, int height, double focal_px);
 
 /// An axis-aligned cube of side `side_m` centred at the origin: 8 vertices, 12 outward triangles.
 TriangleMesh makeCube(float side_m = 1.0f);
