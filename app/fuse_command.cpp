@@ -36,16 +36,6 @@ void prepareOutputFolder(const fs::path& out) {
   }
 }
 
-struct StageTotals {
-  double preprocess_ms = 0, track_ms = 0, integrate_ms = 0, raycast_ms = 0;
-  void add(const fusion::FrameTimings& t) {
-    preprocess_ms += t.preprocess_ms;
-    track_ms += t.track_ms;
-    integrate_ms += t.integrate_ms;
-    raycast_ms += t.raycast_ms;
-  }
-};
-
 }  // namespace
 
 int runFuse(const FuseCommandOptions& options) {
@@ -80,7 +70,7 @@ int runFuse(const FuseCommandOptions& options) {
   log::info("fusing " + info.description + (given ? " at the given poses" : " with ICP tracking"));
 
   std::optional<fusion::Fusion> fusion;
-  StageTotals totals;
+  fusion::FrameTimings totals;
   std::size_t frames_read = 0, bad_frames = 0, without_pose = 0;
   std::string first_loss, first_skip;
   bool interrupted = false;
@@ -122,7 +112,7 @@ int runFuse(const FuseCommandOptions& options) {
         fusion.emplace(options.config, frame.intrinsics, initial);
       }
       const fusion::FrameOutcome outcome = fusion->process(frame, pose);
-      totals.add(outcome.timings);
+      totals += outcome.timings;
       if (outcome.status == fusion::FrameStatus::kLost) {
         log::debug("frame " + std::to_string(frame.index) + ": tracking lost: " + outcome.reason);
         if (first_loss.empty()) {

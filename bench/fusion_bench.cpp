@@ -200,10 +200,7 @@ FusionBenchResult runObjscan(const LoadedInput& loaded, const Settings& settings
       if (o.status != objscan::fusion::FrameStatus::kTracked) continue;
       ++tracked;
       iterations += static_cast<std::size_t>(o.tracking.iterations);
-      sum.preprocess_ms += o.timings.preprocess_ms;
-      sum.track_ms += o.timings.track_ms;
-      sum.integrate_ms += o.timings.integrate_ms;
-      sum.raycast_ms += o.timings.raycast_ms;
+      sum += o.timings;
     }
     const double loop_s = msSince(loop_start) / 1e3;
     objscan::Trajectory truth;

@@ -7,7 +7,6 @@
 #include <string>
 
 #include <tbb/blocked_range.h>
-#include <tbb/combinable.h>
 #include <tbb/parallel_for.h>
 #include <Eigen/Geometry>
 #include <opencv2/imgproc.hpp>
@@ -49,16 +48,14 @@ void backProject(const cv::Mat& depth_m, const Intrinsics& in,
   });
 }
 
-/// computeNormals into `normals` (resized, memory reused); returns how many are valid.
-std::size_t normalsInto(const std::vector<Eigen::Vector3f>& vertices_C, int width, int height,
-                        std::vector<Eigen::Vector3f>* normals) {
+/// computeNormals into `normals` (resized, memory reused).
+void normalsInto(const std::vector<Eigen::Vector3f>& vertices_C, int width, int height,
+                 std::vector<Eigen::Vector3f>* normals) {
   normals->resize(vertices_C.size());
-  tbb::combinable<std::size_t> valid([] { return std::size_t{0}; });
   forEachRow(height, [&](int v) {
     Eigen::Vector3f* out = normals->data() + static_cast<std::size_t>(v) * width;
     std::fill(out, out + width, Eigen::Vector3f::Constant(kNaN));
     if (v + 1 == height) return;
-    std::size_t& count = valid.local();
     for (int u = 0; u + 1 < width; ++u) {
       const std::size_t i = static_cast<std::size_t>(v) * width + u;
       const Eigen::Vector3f& p = vertices_C[i];
@@ -70,10 +67,8 @@ std::size_t normalsInto(const std::vector<Eigen::Vector3f>& vertices_C, int widt
       if (!(norm > 0.0f)) continue;
       n /= norm;
       out[u] = n.dot(p) > 0.0f ? Eigen::Vector3f(-n) : n;
-      ++count;
     }
   });
-  return valid.combine([](std::size_t a, std::size_t b) { return a + b; });
 }
 
 /// Half resolution: each pixel averages the valid pixels of its 2x2 block that lie within
@@ -184,7 +179,7 @@ void buildPyramid(const cv::Mat& clipped_depth_m, const Intrinsics& intrinsics,
       clipped_depth_m.copyTo(l.depth_m);
     }
     backProject(l.depth_m, l.intrinsics, &l.vertices_C);
-    l.valid_pixels = normalsInto(l.vertices_C, l.depth_m.cols, l.depth_m.rows, &l.normals_C);
+    normalsInto(l.vertices_C, l.depth_m.cols, l.depth_m.rows, &l.normals_C);
   }
 }
 

@@ -43,6 +43,15 @@ struct FrameTimings {
   double track_ms = 0.0;
   double integrate_ms = 0.0;
   double raycast_ms = 0.0;
+
+  /// Stage by stage, for totals over frames.
+  FrameTimings& operator+=(const FrameTimings& o) {
+    preprocess_ms += o.preprocess_ms;
+    track_ms += o.track_ms;
+    integrate_ms += o.integrate_ms;
+    raycast_ms += o.raycast_ms;
+    return *this;
+  }
 };
 
 struct FrameOutcome {

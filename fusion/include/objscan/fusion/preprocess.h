@@ -36,7 +36,6 @@ struct DepthLevel {
   cv::Mat depth_m;                          ///< CV_32FC1
   std::vector<Eigen::Vector3f> vertices_C;  ///< back-projected depth
   std::vector<Eigen::Vector3f> normals_C;   ///< unit, facing the camera
-  std::size_t valid_pixels = 0;             ///< pixels with a vertex and a normal
 };
 
 /// Levels 0 (full resolution) to pyramid_levels - 1.
