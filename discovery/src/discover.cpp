@@ -18,11 +18,6 @@ double msSince(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
 
-/// The measures as a row, each oriented so that higher means more object-like.
-std::array<double, 5> oriented(const ShapeMeasures& m) {
-  return {m.compactness, -m.symmetry, m.smoothness, m.local_convexity, -m.global_convexity};
-}
-
 }  // namespace
 
 ShapeMeasures measureSegment(const TriangleMesh& mesh, const MeshGraph& graph,
@@ -43,13 +38,14 @@ std::vector<double> averageScores(const std::vector<ShapeMeasures>& all) {
   if (n == 0) return scores;
   for (std::size_t k = 0; k < 5; ++k) {
     double mean = 0.0, square = 0.0;
-    for (const ShapeMeasures& m : all) mean += oriented(m)[k];
+    for (const ShapeMeasures& m : all) mean += orientedMeasures(m)[k];
     mean /= static_cast<double>(n);
-    for (const ShapeMeasures& m : all) square += std::pow(oriented(m)[k] - mean, 2.0);
+    for (const ShapeMeasures& m : all) square += std::pow(orientedMeasures(m)[k] - mean, 2.0);
     const double sd = std::sqrt(square / static_cast<double>(n));
     // A measure that does not vary says nothing about which candidate is better.
     if (!(sd > 0.0)) continue;
-    for (std::size_t i = 0; i < n; ++i) scores[i] += (oriented(all[i])[k] - mean) / sd / 5.0;
+    for (std::size_t i = 0; i < n; ++i)
+      scores[i] += (orientedMeasures(all[i])[k] - mean) / sd / 5.0;
   }
   return scores;
 }

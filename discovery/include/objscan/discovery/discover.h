@@ -12,14 +12,6 @@
 /// needs the catalog of other scenes) and with the unsupervised score.
 namespace objscan::discovery {
 
-struct ShapeMeasures {
-  double compactness = 0.0;
-  double symmetry = 0.0;  ///< a distance: lower is more symmetric
-  double smoothness = 0.0;
-  double local_convexity = 0.0;
-  double global_convexity = 0.0;  ///< mean distance to the hull, metres: lower is more convex
-};
-
 struct DiscoveryConfig {
   /// Felzenszwalb-Huttenlocher granularities: ten doublings from 5. Chosen on the fused TUM
   /// desk (5.86 mm voxels, 207 k vertices, the paper's density): below 5 the segments barely

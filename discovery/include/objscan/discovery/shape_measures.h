@@ -1,6 +1,8 @@
 #pragma once
 
+#include <array>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include <Eigen/Core>
@@ -12,6 +14,31 @@
 /// The paper's five intrinsic shape measures of a segment (section IV-B): compactness, symmetry,
 /// smoothness, local convexity and global convexity.
 namespace objscan::discovery {
+
+/// The paper's six objectness measures of one segment, raw (not normalised). Each is oriented as
+/// the paper defines it; orientedMeasures() turns them so that higher is more object-like.
+struct ShapeMeasures {
+  double compactness = 0.0;
+  double symmetry = 0.0;  ///< a distance: lower is more symmetric
+  double smoothness = 0.0;
+  double local_convexity = 0.0;
+  double global_convexity = 0.0;  ///< mean distance to the hull, metres: lower is more convex
+  /// Mean distance, in z-normalised measure units, to the k most similar segments of other
+  /// scenes: lower recurs more. NaN when no other scene is known (no catalog, or the first scene).
+  double recurrence = std::numeric_limits<double>::quiet_NaN();
+};
+
+inline constexpr std::size_t kMeasureCount = 6;
+/// The measures' names, in the order of orientedMeasures() (also the JSON and CSV keys).
+inline constexpr std::array<const char*, kMeasureCount> kMeasureNames = {
+    "compactness", "symmetry", "smoothness", "local_convexity", "global_convexity", "recurrence"};
+
+/// The measures as a row in kMeasureNames' order, each oriented so that higher means more
+/// object-like: symmetry, the hull distance and recurrence are negated.
+inline std::array<double, kMeasureCount> orientedMeasures(const ShapeMeasures& m) {
+  return {m.compactness,     -m.symmetry,         m.smoothness,
+          m.local_convexity, -m.global_convexity, -m.recurrence};
+}
 
 struct Sphere {
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();
