@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include "discover_command.h"
+#include "eval_command.h"
 #include "exit_codes.h"
 #include "fuse_command.h"
 #include "info_command.h"
@@ -31,11 +33,8 @@ struct Planned {
 };
 
 constexpr Planned kPlanned[] = {
-    {"discover", "Segment meshes, measure and rank object hypotheses into DIR", "Step E"},
     {"render", "Render snapshots of the top hypotheses in DIR into DIR/renders/", "Step F"},
     {"scan", "Capture (or replay) to ranked objects in one go: fuse, discover, render", "Step F"},
-    {"eval", "Precision/recall and AP of hypotheses against labelled ground truth", "Step E"},
-    {"train", "Fit the classifier that scores hypotheses", "Step E"},
 };
 
 /// One line on stderr, whatever the message holds.
@@ -150,6 +149,67 @@ int run(int argc, char** argv) {
                    "intrinsics.json (fx, fy, cx, cy, width, height) replacing the source's");
   fuse->add_flag("--no-color", fuse_options.no_color, "Fuse depth only (mesh without colours)");
 
+  DiscoverCommandOptions discover_options;
+  std::filesystem::path discover_catalog;
+  CLI::App* discover = app.add_subcommand(
+      "discover", "Segment scene meshes, measure and rank object hypotheses into DIR");
+  discover
+      ->add_option("meshes", discover_options.meshes,
+                   "Scene meshes (.ply, e.g. objscan fuse's mesh.ply), or folders holding one")
+      ->required();
+  discover->add_option("--out", discover_options.out, "Folder for hypotheses.json and objects/")
+      ->required();
+  auto* catalog_option =
+      discover->add_option("--catalog", discover_catalog,
+                           "Catalog of scenes seen so far (SQLite; default $OBJSCAN_CATALOG or "
+                           "~/.local/share/objscan/catalog.sqlite)");
+  discover
+      ->add_flag("--no-catalog", discover_options.no_catalog,
+                 "Use no catalog: recurrence only among the scenes given")
+      ->excludes(catalog_option);
+  discover->add_option("--model", discover_options.model,
+                       "Score with a classifier from objscan train (default: the average of the "
+                       "normalised measures)");
+  discover->add_flag("--timings", discover_options.timings, "Print each stage's time");
+
+  const auto addLabelledScenes = [](CLI::App* sub, std::vector<std::filesystem::path>& scenes,
+                                    std::optional<std::filesystem::path>& catalog) {
+    sub->add_option("scenes", scenes,
+                    "Labelled scenes: folders with scene_gt.ply and fused/mesh.ply "
+                    "(scripts/make_discovery_scenes), or meshes whose vertices carry object_id")
+        ->required();
+    sub->add_option("--catalog", catalog, "Catalog to reuse and extend (default: none)");
+  };
+  EvalCommandOptions eval_options;
+  CLI::App* eval = app.add_subcommand(
+      "eval", "The paper's evaluation on labelled scenes: AP, precision-recall, ablation, recall");
+  addLabelledScenes(eval, eval_options.scenes, eval_options.catalog);
+  eval->add_option("--out", eval_options.out, "Folder for the CSV files and plots")->required();
+  eval->add_option("--splits", eval_options.splits, "Random train/test halvings")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  eval->add_option("--seed", eval_options.seed, "Seed of the splits and folds")
+      ->capture_default_str();
+  bool no_ablation = false;
+  eval->add_flag("--no-ablation", no_ablation, "Skip the RBF SVM without each measure");
+
+  TrainCommandOptions train_options;
+  CLI::App* train = app.add_subcommand(
+      "train", "Fit a classifier that scores hypotheses (for objscan discover --model)");
+  addLabelledScenes(train, train_options.scenes, train_options.catalog);
+  train->add_option("--model", train_options.model, "Model file to write (YAML)")->required();
+  train
+      ->add_option("--kind", train_options.kind,
+                   "naive_bayes, linear_svm, rbf_svm or nearest_neighbour")
+      ->capture_default_str();
+  train
+      ->add_option("--min-iou", train_options.min_iou,
+                   "A segment is an object at this IoU with a ground-truth object")
+      ->check(CLI::Range(0.01, 1.0))
+      ->capture_default_str();
+  train->add_option("--seed", train_options.seed, "Seed of the cross-validation folds")
+      ->capture_default_str();
+
   std::vector<std::pair<CLI::App*, const Planned*>> planned;
   for (const Planned& p : kPlanned) {
     CLI::App* sub =
@@ -199,6 +259,15 @@ int run(int argc, char** argv) {
     return runFuse(fuse_options);
   }
   if (synth->parsed()) runSynth(synth_options);
+  if (discover->parsed()) {
+    if (!discover_catalog.empty()) discover_options.catalog = discover_catalog;
+    return runDiscover(discover_options);
+  }
+  if (eval->parsed()) {
+    eval_options.ablation = !no_ablation;
+    return runEval(eval_options);
+  }
+  if (train->parsed()) return runTrain(train_options);
   return kExitSuccess;
 }
 

@@ -91,4 +91,27 @@ double TriangleMesh::surfaceArea() const {
   return area;
 }
 
+TriangleMesh TriangleMesh::subset(const std::vector<std::int32_t>& vertices) const {
+  std::vector<std::int32_t> renumbered(positions.size(), -1);
+  TriangleMesh out;
+  std::int32_t previous = -1;
+  for (std::int32_t v : vertices) {
+    if (v <= previous || static_cast<std::size_t>(v) >= positions.size()) {
+      throw std::invalid_argument("subset: vertex " + std::to_string(v) +
+                                  " is outside the mesh or out of increasing order");
+    }
+    previous = v;
+    renumbered[v] = static_cast<std::int32_t>(out.positions.size());
+    out.positions.push_back(positions[v]);
+    if (hasNormals()) out.normals.push_back(normals[v]);
+    if (hasColors()) out.colors.push_back(colors[v]);
+    if (hasLabels()) out.labels.push_back(labels[v]);
+  }
+  for (const Eigen::Vector3i& t : triangles) {
+    const Eigen::Vector3i r(renumbered[t[0]], renumbered[t[1]], renumbered[t[2]]);
+    if (r.minCoeff() >= 0) out.triangles.push_back(r);
+  }
+  return out;
+}
+
 }  // namespace objscan

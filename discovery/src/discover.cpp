@@ -1,10 +1,17 @@
 #include "objscan/discovery/discover.h"
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <ctime>
+#include <iomanip>
+#include <sstream>
+#include <stdexcept>
 
+#include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/partitioner.h>
 
 #include "objscan/discovery/segmentation.h"
 
@@ -18,71 +25,230 @@ double msSince(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
 
+/// CPU time of the process (all threads) or of the calling thread, milliseconds.
+double cpuMs(clockid_t clock) {
+  timespec t{};
+  clock_gettime(clock, &t);
+  return 1e3 * static_cast<double>(t.tv_sec) + 1e-6 * static_cast<double>(t.tv_nsec);
+}
+
+/// Wall and process CPU time of one stage.
+struct Stopwatch {
+  Clock::time_point wall = Clock::now();
+  double cpu = cpuMs(CLOCK_PROCESS_CPUTIME_ID);
+  void stop(double* wall_ms, double* cpu_ms) {
+    *wall_ms = msSince(wall);
+    *cpu_ms = cpuMs(CLOCK_PROCESS_CPUTIME_ID) - cpu;
+    wall = Clock::now();
+    cpu = cpuMs(CLOCK_PROCESS_CPUTIME_ID);
+  }
+};
+
 }  // namespace
 
 ShapeMeasures measureSegment(const TriangleMesh& mesh, const MeshGraph& graph,
-                             const VertexEdges& by_vertex, const Segment& segment,
-                             const DiscoveryConfig& config) {
+                             const SceneLookups& lookups, const Segment& segment,
+                             const DiscoveryConfig& config, MeasureCpuMs* cpu_ms) {
   ShapeMeasures m;
-  m.compactness = compactness(mesh, segment);
+  double last = cpu_ms ? cpuMs(CLOCK_THREAD_CPUTIME_ID) : 0.0;
+  const auto lap = [&](std::size_t k) {
+    if (!cpu_ms) return;
+    const double now = cpuMs(CLOCK_THREAD_CPUTIME_ID);
+    (*cpu_ms)[k] += now - last;
+    last = now;
+  };
+  m.compactness = compactness(mesh, lookups.triangles, segment);
+  lap(0);
   m.symmetry = symmetry(mesh, segment, config.symmetry_beta);
-  m.smoothness = smoothness(mesh, segment, config.smoothness_radius_m, config.smoothness_bins);
-  m.local_convexity = localConvexity(graph, by_vertex, segment);
+  lap(1);
+  m.smoothness = smoothness(lookups.neighbours, segment);
+  lap(2);
+  m.local_convexity = localConvexity(graph, lookups.edges, segment);
+  lap(3);
   m.global_convexity = hullDistance(mesh, segment);
+  lap(4);
   return m;
 }
 
-std::vector<double> averageScores(const std::vector<ShapeMeasures>& all) {
-  const std::size_t n = all.size();
-  std::vector<double> scores(n, 0.0);
-  if (n == 0) return scores;
-  for (std::size_t k = 0; k < 5; ++k) {
-    double mean = 0.0, square = 0.0;
-    for (const ShapeMeasures& m : all) mean += orientedMeasures(m)[k];
-    mean /= static_cast<double>(n);
-    for (const ShapeMeasures& m : all) square += std::pow(orientedMeasures(m)[k] - mean, 2.0);
-    const double sd = std::sqrt(square / static_cast<double>(n));
-    // A measure that does not vary says nothing about which candidate is better.
-    if (!(sd > 0.0)) continue;
-    for (std::size_t i = 0; i < n; ++i)
-      scores[i] += (orientedMeasures(all[i])[k] - mean) / sd / 5.0;
+std::vector<ShapeMeasures> measureCandidates(const TriangleMesh& mesh, const MeshGraph& graph,
+                                             const std::vector<Segment>& candidates,
+                                             const DiscoveryConfig& config, MeasureCpuMs* cpu_ms) {
+  // The same segment often comes out of several scales: each distinct one is measured once,
+  // largest first (so that the last to finish is a small one), and its repeats copy it.
+  const std::vector<std::size_t> first = firstOfEach(candidates);
+  std::vector<std::size_t> distinct;
+  std::vector<std::uint8_t> wanted(mesh.positions.size(), 0);
+  for (std::size_t i = 0; i < candidates.size(); ++i) {
+    if (first[i] != i) continue;
+    distinct.push_back(i);
+    for (std::int32_t v : candidates[i].vertices) wanted[static_cast<std::size_t>(v)] = 1;
   }
+  std::stable_sort(distinct.begin(), distinct.end(), [&](std::size_t a, std::size_t b) {
+    return candidates[a].vertices.size() > candidates[b].vertices.size();
+  });
+  std::vector<std::int32_t> measured_vertices;
+  for (std::size_t v = 0; v < wanted.size(); ++v) {
+    if (wanted[v]) measured_vertices.push_back(static_cast<std::int32_t>(v));
+  }
+  // The look-ups, each timed with the measure that needs it (local convexity: the edges).
+  SceneLookups lookups;
+  double cpu_start = cpuMs(CLOCK_PROCESS_CPUTIME_ID);
+  const auto lap = [&](std::size_t k) {
+    const double now = cpuMs(CLOCK_PROCESS_CPUTIME_ID);
+    if (cpu_ms) (*cpu_ms)[k] += now - cpu_start;
+    cpu_start = now;
+  };
+  lookups.edges = vertexEdges(graph);
+  lap(3);
+  lookups.triangles = vertexTriangles(mesh);
+  lap(0);
+  lookups.neighbours = tangentNeighbours(mesh, measured_vertices, config.smoothness_radius_m,
+                                         config.smoothness_bins);
+  lap(2);
+
+  std::vector<ShapeMeasures> measures(candidates.size());
+  std::vector<MeasureCpuMs> cpu(distinct.size(), MeasureCpuMs{});
+  tbb::parallel_for(
+      tbb::blocked_range<std::size_t>(0, distinct.size(), 1),
+      [&](const tbb::blocked_range<std::size_t>& range) {
+        for (std::size_t k = range.begin(); k < range.end(); ++k) {
+          const std::size_t i = distinct[k];
+          measures[i] = measureSegment(mesh, graph, lookups, candidates[i], config, &cpu[k]);
+        }
+      },
+      tbb::simple_partitioner());
+  for (std::size_t i = 0; i < candidates.size(); ++i) measures[i] = measures[first[i]];
+  for (const MeasureCpuMs& c : cpu) {
+    for (std::size_t k = 0; cpu_ms && k < c.size(); ++k) (*cpu_ms)[k] += c[k];
+  }
+  return measures;
+}
+
+void DiscoveryConfig::validate() const {
+  if (scales.empty()) throw std::invalid_argument("discovery needs at least one scale");
+  for (float k : scales) {
+    if (!(k > 0.0f) || !std::isfinite(k)) throw std::invalid_argument("scales must be positive");
+  }
+  if (min_size < 1) throw std::invalid_argument("min_size must be at least 1 vertex");
+  if (scale_with_density && !(reference_spacing_m > 0.0f)) {
+    throw std::invalid_argument("reference_spacing_m must be positive");
+  }
+  if (!(max_iou > 0.0 && max_iou <= 1.0)) throw std::invalid_argument("max_iou must be in (0, 1]");
+  if (!(smoothness_radius_m > 0.0f) || smoothness_bins < 2) {
+    throw std::invalid_argument("smoothness needs a positive radius and at least 2 bins");
+  }
+  if (recurrence_neighbours < 1 || !(recurrence_window > 0.0)) {
+    throw std::invalid_argument("recurrence needs k >= 1 and a positive extent window");
+  }
+}
+
+std::string settingsKey(const DiscoveryConfig& c) {
+  std::ostringstream s;
+  s << std::setprecision(9) << "v1 scales";
+  for (float k : c.scales) s << ' ' << k;
+  s << " min_size " << c.min_size << " density " << c.scale_with_density << ' '
+    << c.reference_spacing_m << " filter " << c.filter.max_size_m << ' ' << c.filter.min_thickness_m
+    << ' ' << c.filter.min_lambda1_over_lambda0 << ' ' << c.filter.min_lambda2_over_lambda0
+    << " beta " << c.symmetry_beta << " smooth " << c.smoothness_radius_m << ' '
+    << c.smoothness_bins;
+  return s.str();
+}
+
+EffectiveScales effectiveScales(const MeshGraph& graph, const TriangleMesh& mesh,
+                                const DiscoveryConfig& config) {
+  EffectiveScales e{config.scales, config.min_size, 0.0};
+  if (graph.edges.empty()) return e;
+  std::vector<float> lengths(graph.edges.size());
+  for (std::size_t i = 0; i < lengths.size(); ++i) {
+    const MeshEdge& edge = graph.edges[i];
+    lengths[i] = (mesh.positions[edge.a] - mesh.positions[edge.b]).norm();
+  }
+  std::nth_element(lengths.begin(), lengths.begin() + lengths.size() / 2, lengths.end());
+  e.median_edge_m = lengths[lengths.size() / 2];
+  if (!config.scale_with_density || !(e.median_edge_m > 0.0)) return e;
+  const double density = std::pow(config.reference_spacing_m / e.median_edge_m, 2.0);
+  for (float& k : e.scales) k = static_cast<float>(k * density);
+  e.min_size = std::max<std::size_t>(
+      1, static_cast<std::size_t>(std::lround(static_cast<double>(config.min_size) * density)));
+  return e;
+}
+
+std::vector<double> averageScores(const std::vector<ShapeMeasures>& all) {
+  const MeasureNormaliser normaliser = MeasureNormaliser::fit(all);
+  const MeasureMask varying = varyingMeasures(normaliser);
+  std::vector<double> scores(all.size(), 0.0);
+  if (std::find(varying.begin(), varying.end(), true) == varying.end()) return scores;
+  const ObjectnessModel average = ObjectnessModel::average(normaliser, varying);
+  for (std::size_t i = 0; i < all.size(); ++i) scores[i] = average.score(all[i]);
   return scores;
+}
+
+SceneCandidates findCandidates(const TriangleMesh& mesh, const DiscoveryConfig& config) {
+  config.validate();
+  SceneCandidates out;
+  DiscoveryTimings& t = out.timings;
+  Stopwatch watch;
+  const MeshGraph graph = buildMeshGraph(mesh);
+  const EffectiveScales effective = effectiveScales(graph, mesh, config);
+  watch.stop(&t.graph_ms, &t.graph_cpu_ms);
+
+  const std::vector<Segmentation> segmentations =
+      segmentAtScales(graph, effective.scales, effective.min_size);
+  watch.stop(&t.segment_ms, &t.segment_cpu_ms);
+
+  out.segments = candidateSegments(mesh, segmentations, effective.min_size, config.filter);
+  t.candidate_count = out.segments.size();
+  watch.stop(&t.filter_ms, &t.filter_cpu_ms);
+
+  out.measures = measureCandidates(mesh, graph, out.segments, config, &t.per_measure_cpu_ms);
+  watch.stop(&t.measure_ms, &t.measure_cpu_ms);
+  return out;
+}
+
+void addRecurrence(SceneCandidates& candidates, const RecurrenceIndex& index, std::int64_t scene_id,
+                   const DiscoveryConfig& config) {
+  std::vector<RecurrenceEntry> queries;
+  queries.reserve(candidates.segments.size());
+  for (std::size_t i = 0; i < candidates.segments.size(); ++i) {
+    queries.push_back(
+        {scene_id, candidates.segments[i].extents, recurrenceMeasures(candidates.measures[i])});
+  }
+  const std::vector<double> r =
+      index.recurrences(queries, scene_id, config.recurrence_neighbours, config.recurrence_window);
+  for (std::size_t i = 0; i < r.size(); ++i) candidates.measures[i].recurrence = r[i];
+}
+
+namespace {
+
+std::vector<Hypothesis> suppress(const SceneCandidates& candidates,
+                                 const std::vector<double>& scores, double max_iou) {
+  const std::vector<std::size_t> kept = suppressOverlaps(candidates.segments, scores, max_iou);
+  std::vector<Hypothesis> out;
+  out.reserve(kept.size());
+  for (std::size_t i : kept) {
+    out.push_back({candidates.segments[i], candidates.measures[i], scores[i]});
+  }
+  return out;
+}
+
+}  // namespace
+
+std::vector<Hypothesis> rankCandidates(const SceneCandidates& candidates,
+                                       const ObjectnessModel& model, double max_iou) {
+  std::vector<double> scores;
+  scores.reserve(candidates.measures.size());
+  for (const ShapeMeasures& m : candidates.measures) scores.push_back(model.score(m));
+  return suppress(candidates, scores, max_iou);
 }
 
 std::vector<Hypothesis> discoverObjects(const TriangleMesh& mesh, const DiscoveryConfig& config,
                                         DiscoveryTimings* timings) {
-  DiscoveryTimings t;
-  auto start = Clock::now();
-  const MeshGraph graph = buildMeshGraph(mesh);
-  const VertexEdges by_vertex = vertexEdges(graph);
-  t.graph_ms = msSince(start);
-
-  start = Clock::now();
-  const std::vector<Segmentation> segmentations =
-      segmentAtScales(graph, config.scales, config.min_size);
-  t.segment_ms = msSince(start);
-
-  start = Clock::now();
-  std::vector<Segment> candidates =
-      candidateSegments(mesh, segmentations, config.min_size, config.filter);
-  t.filter_ms = msSince(start);
-
-  start = Clock::now();
-  std::vector<ShapeMeasures> measures(candidates.size());
-  tbb::parallel_for(std::size_t{0}, candidates.size(), [&](std::size_t i) {
-    measures[i] = measureSegment(mesh, graph, by_vertex, candidates[i], config);
-  });
-  const std::vector<double> scores = averageScores(measures);
-  t.measure_ms = msSince(start);
-
-  start = Clock::now();
-  const std::vector<std::size_t> kept = suppressOverlaps(candidates, scores, config.max_iou);
-  std::vector<Hypothesis> out;
-  out.reserve(kept.size());
-  for (std::size_t i : kept) out.push_back({std::move(candidates[i]), measures[i], scores[i]});
-  t.suppress_ms = msSince(start);
-  if (timings) *timings = t;
+  SceneCandidates candidates = findCandidates(mesh, config);
+  Stopwatch watch;
+  const std::vector<double> scores = averageScores(candidates.measures);
+  std::vector<Hypothesis> out = suppress(candidates, scores, config.max_iou);
+  watch.stop(&candidates.timings.suppress_ms, &candidates.timings.suppress_cpu_ms);
+  if (timings) *timings = candidates.timings;
   return out;
 }
 

@@ -6,7 +6,9 @@
 #include <numeric>
 #include <stdexcept>
 #include <string>
+#include <unordered_map>
 
+#include <tbb/parallel_for.h>
 #include <Eigen/Eigenvalues>
 
 namespace objscan::discovery {
@@ -72,25 +74,104 @@ std::optional<std::string> rejection(const Segment& s, const SegmentFilter& f) {
   return std::nullopt;
 }
 
+namespace {
+
+/// FNV-1a over a vertex list and its length: equal lists hash equal.
+std::uint64_t hashVertices(const std::vector<std::int32_t>& vertices) {
+  std::uint64_t hash = 1469598103934665603ull ^ vertices.size();
+  for (std::int32_t v : vertices) hash = (hash ^ static_cast<std::uint32_t>(v)) * 1099511628211ull;
+  return hash;
+}
+
+/// For each list, the index of the first equal one (its own when none comes before it).
+std::vector<std::size_t> firstEqual(const std::vector<const std::vector<std::int32_t>*>& lists,
+                                    const std::vector<std::uint64_t>& hashes) {
+  std::vector<std::size_t> first(lists.size());
+  std::unordered_map<std::uint64_t, std::vector<std::size_t>> by_hash;
+  for (std::size_t i = 0; i < lists.size(); ++i) {
+    first[i] = i;
+    std::vector<std::size_t>& same = by_hash[hashes[i]];
+    for (std::size_t j : same) {
+      if (*lists[j] == *lists[i]) {
+        first[i] = j;
+        break;
+      }
+    }
+    if (first[i] == i) same.push_back(i);
+  }
+  return first;
+}
+
+}  // namespace
+
 std::vector<Segment> candidateSegments(const TriangleMesh& mesh,
                                        const std::vector<Segmentation>& segmentations,
                                        std::size_t min_size, const SegmentFilter& filter) {
-  std::vector<Segment> out;
   for (const Segmentation& seg : segmentations) {
     if (seg.labels.size() != mesh.positions.size()) {
       throw std::invalid_argument("a segmentation's labels do not match the mesh's vertices");
     }
+  }
+  // The scales in parallel, each gathering only its large enough segments' vertices.
+  struct Found {
+    std::vector<std::int32_t> vertices;
+    std::uint64_t hash = 0;
+  };
+  std::vector<std::vector<Found>> per_scale(segmentations.size());
+  tbb::parallel_for(std::size_t{0}, segmentations.size(), [&](std::size_t i) {
+    const Segmentation& seg = segmentations[i];
+    std::vector<std::size_t> sizes(seg.segment_count, 0);
+    for (std::int32_t label : seg.labels) ++sizes[static_cast<std::size_t>(label)];
     std::vector<std::vector<std::int32_t>> members(seg.segment_count);
-    for (std::size_t v = 0; v < seg.labels.size(); ++v) {
-      members[static_cast<std::size_t>(seg.labels[v])].push_back(static_cast<std::int32_t>(v));
+    for (std::size_t label = 0; label < sizes.size(); ++label) {
+      if (sizes[label] >= min_size) members[label].reserve(sizes[label]);
     }
-    for (std::vector<std::int32_t>& m : members) {
-      if (m.size() < min_size) continue;
-      Segment s = describeSegment(mesh, std::move(m), seg.scale);
-      if (!rejection(s, filter)) out.push_back(std::move(s));
+    for (std::size_t v = 0; v < seg.labels.size(); ++v) {
+      const auto label = static_cast<std::size_t>(seg.labels[v]);
+      if (sizes[label] >= min_size) members[label].push_back(static_cast<std::int32_t>(v));
+    }
+    for (std::size_t label = 0; label < sizes.size(); ++label) {
+      if (sizes[label] < min_size || sizes[label] == 0) continue;
+      const std::uint64_t hash = hashVertices(members[label]);
+      per_scale[i].push_back({std::move(members[label]), hash});
+    }
+  });
+  // The same segment often comes out of several scales: each distinct one is described and
+  // filtered once, in parallel.
+  std::vector<const std::vector<std::int32_t>*> lists;
+  std::vector<std::uint64_t> hashes;
+  std::vector<float> scales;
+  for (std::size_t i = 0; i < per_scale.size(); ++i) {
+    for (const Found& f : per_scale[i]) {
+      lists.push_back(&f.vertices);
+      hashes.push_back(f.hash);
+      scales.push_back(segmentations[i].scale);
     }
   }
+  const std::vector<std::size_t> first = firstEqual(lists, hashes);
+  std::vector<std::optional<Segment>> kept(lists.size());
+  tbb::parallel_for(std::size_t{0}, lists.size(), [&](std::size_t k) {
+    if (first[k] != k) return;
+    Segment s = describeSegment(mesh, *lists[k], scales[k]);
+    if (!rejection(s, filter)) kept[k] = std::move(s);
+  });
+  std::vector<Segment> out;
+  for (std::size_t k = 0; k < lists.size(); ++k) {
+    if (!kept[first[k]]) continue;
+    out.push_back(*kept[first[k]]);
+    out.back().scale = scales[k];
+  }
   return out;
+}
+
+std::vector<std::size_t> firstOfEach(const std::vector<Segment>& segments) {
+  std::vector<const std::vector<std::int32_t>*> lists;
+  std::vector<std::uint64_t> hashes;
+  for (const Segment& s : segments) {
+    lists.push_back(&s.vertices);
+    hashes.push_back(hashVertices(s.vertices));
+  }
+  return firstEqual(lists, hashes);
 }
 
 double vertexIoU(const std::vector<std::int32_t>& a, const std::vector<std::int32_t>& b) {

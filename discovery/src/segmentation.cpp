@@ -1,22 +1,24 @@
 #include "objscan/discovery/segmentation.h"
 
 #include <algorithm>
+#include <array>
+#include <bit>
 #include <cmath>
 #include <numeric>
 #include <stdexcept>
 
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_sort.h>
 
 namespace objscan::discovery {
 
 namespace {
 
 /// Union-find over the vertices, with each component's size and FH's internal difference (the
-/// largest edge weight of its minimum spanning tree so far).
+/// largest edge weight of its minimum spanning tree so far). The parents apart from the rest: most
+/// look-ups only follow parents, and the smaller their array, the more of it stays in cache.
 class Components {
  public:
-  explicit Components(std::size_t n) : parent_(n), size_(n, 1), internal_(n, 0.0f) {
+  explicit Components(std::size_t n) : parent_(n), root_(n) {
     std::iota(parent_.begin(), parent_.end(), 0);
   }
 
@@ -31,40 +33,78 @@ class Components {
 
   /// Joins the roots a and b through an edge of weight w (the largest so far in both).
   void join(std::int32_t a, std::int32_t b, float w) {
-    if (size_[static_cast<std::size_t>(a)] < size_[static_cast<std::size_t>(b)]) std::swap(a, b);
+    if (root(a).size < root(b).size) std::swap(a, b);
     parent_[static_cast<std::size_t>(b)] = a;
-    size_[static_cast<std::size_t>(a)] += size_[static_cast<std::size_t>(b)];
-    internal_[static_cast<std::size_t>(a)] = w;
+    root(a).size += root(b).size;
+    root(a).internal = w;
   }
 
-  std::size_t size(std::int32_t root) const { return size_[static_cast<std::size_t>(root)]; }
-  float internal(std::int32_t root) const { return internal_[static_cast<std::size_t>(root)]; }
+  std::size_t size(std::int32_t r) const { return root_[static_cast<std::size_t>(r)].size; }
+  float internal(std::int32_t r) const { return root_[static_cast<std::size_t>(r)].internal; }
+
+  /// Asks the memory system for x's parent ahead of its use.
+  void prefetch(std::int32_t x) const { __builtin_prefetch(&parent_[static_cast<std::size_t>(x)]); }
 
  private:
+  /// What a component's root holds (meaningless for other vertices).
+  struct Root {
+    std::uint32_t size = 1;
+    float internal = 0.0f;
+  };
+  Root& root(std::int32_t r) { return root_[static_cast<std::size_t>(r)]; }
   std::vector<std::int32_t> parent_;
-  std::vector<std::size_t> size_;
-  std::vector<float> internal_;
+  std::vector<Root> root_;
 };
 
-std::vector<std::size_t> edgesByWeight(const MeshGraph& graph) {
-  std::vector<std::size_t> order(graph.edges.size());
-  std::iota(order.begin(), order.end(), std::size_t{0});
-  // Ties broken by index, so that the result does not depend on the sort.
-  tbb::parallel_sort(order.begin(), order.end(), [&](std::size_t x, std::size_t y) {
-    const float wx = graph.edges[x].weight, wy = graph.edges[y].weight;
-    return wx < wy || (wx == wy && x < y);
-  });
-  return order;
+/// The graph's edges in increasing weight, ties in increasing index (so that the result does not
+/// depend on the sort), copied into one array that the scales read front to back.
+std::vector<MeshEdge> edgesByWeight(const MeshGraph& graph) {
+  // Each weight's bits, turned so that they order as the floats do (negatives reversed below the
+  // positives; -0 taken as +0), sorted by a stable least-significant-digit radix sort: the edges
+  // start in index order, so ties stay in it.
+  const std::size_t n = graph.edges.size();
+  std::vector<std::uint32_t> key(n), index(n), key_out(n), index_out(n);
+  for (std::size_t e = 0; e < n; ++e) {
+    const auto bits = std::bit_cast<std::uint32_t>(graph.edges[e].weight + 0.0f);
+    key[e] = (bits & 0x80000000u) ? ~bits : (bits | 0x80000000u);
+    index[e] = static_cast<std::uint32_t>(e);
+  }
+  for (int shift = 0; shift < 32; shift += 8) {
+    std::array<std::size_t, 257> start{};
+    for (std::uint32_t k : key) ++start[((k >> shift) & 0xffu) + 1];
+    // A digit that all keys share leaves the order as it is.
+    if (std::find(start.begin(), start.end(), n) != start.end()) continue;
+    std::partial_sum(start.begin(), start.end(), start.begin());
+    for (std::size_t e = 0; e < n; ++e) {
+      const std::size_t to = start[(key[e] >> shift) & 0xffu]++;
+      key_out[to] = key[e];
+      index_out[to] = index[e];
+    }
+    key.swap(key_out);
+    index.swap(index_out);
+  }
+  key = {};  // freed before the copy is made: a smaller peak
+  key_out = {};
+  index_out = {};
+  std::vector<MeshEdge> sorted(n);
+  for (std::size_t k = 0; k < n; ++k) sorted[k] = graph.edges[index[k]];
+  return sorted;
 }
 
-Segmentation segmentSorted(const MeshGraph& graph, const std::vector<std::size_t>& order,
+Segmentation segmentSorted(std::size_t vertex_count, const std::vector<MeshEdge>& sorted,
                            float scale, std::size_t min_size) {
   if (!(scale >= 0.0f) || !std::isfinite(scale)) {
     throw std::invalid_argument("the segmentation scale must be a finite number >= 0");
   }
-  Components c(graph.vertex_count);
-  for (std::size_t e : order) {
-    const MeshEdge& edge = graph.edges[e];
+  // Edges far enough ahead are prefetched: their ends are scattered over the vertices.
+  constexpr std::size_t kAhead = 8;
+  Components c(vertex_count);
+  for (std::size_t k = 0; k < sorted.size(); ++k) {
+    if (k + kAhead < sorted.size()) {
+      c.prefetch(sorted[k + kAhead].a);
+      c.prefetch(sorted[k + kAhead].b);
+    }
+    const MeshEdge& edge = sorted[k];
     const std::int32_t a = c.find(edge.a), b = c.find(edge.b);
     if (a == b) continue;
     const float limit_a = c.internal(a) + scale / static_cast<float>(c.size(a));
@@ -72,8 +112,16 @@ Segmentation segmentSorted(const MeshGraph& graph, const std::vector<std::size_t
     // Edges come in increasing weight, so edge.weight is the joined tree's largest.
     if (edge.weight <= std::min(limit_a, limit_b)) c.join(a, b, edge.weight);
   }
-  for (std::size_t e : order) {
-    const MeshEdge& edge = graph.edges[e];
+  // Components only grow, so an edge between two that are already large enough is never taken
+  // below: only the edges that touch a small one are looked at.
+  std::vector<std::uint8_t> small(vertex_count);
+  for (std::size_t v = 0; v < vertex_count; ++v) {
+    small[v] = c.size(c.find(static_cast<std::int32_t>(v))) < min_size ? 1 : 0;
+  }
+  for (const MeshEdge& edge : sorted) {
+    if (!small[static_cast<std::size_t>(edge.a)] && !small[static_cast<std::size_t>(edge.b)]) {
+      continue;
+    }
     const std::int32_t a = c.find(edge.a), b = c.find(edge.b);
     if (a != b && (c.size(a) < min_size || c.size(b) < min_size)) {
       c.join(a, b, std::max({edge.weight, c.internal(a), c.internal(b)}));
@@ -81,9 +129,9 @@ Segmentation segmentSorted(const MeshGraph& graph, const std::vector<std::size_t
   }
   Segmentation s;
   s.scale = scale;
-  s.labels.assign(graph.vertex_count, -1);
-  std::vector<std::int32_t> label_of_root(graph.vertex_count, -1);
-  for (std::size_t v = 0; v < graph.vertex_count; ++v) {
+  s.labels.assign(vertex_count, -1);
+  std::vector<std::int32_t> label_of_root(vertex_count, -1);
+  for (std::size_t v = 0; v < vertex_count; ++v) {
     const auto root = static_cast<std::size_t>(c.find(static_cast<std::int32_t>(v)));
     if (label_of_root[root] < 0) {
       label_of_root[root] = static_cast<std::int32_t>(s.segment_count++);
@@ -96,15 +144,23 @@ Segmentation segmentSorted(const MeshGraph& graph, const std::vector<std::size_t
 }  // namespace
 
 Segmentation segmentGraph(const MeshGraph& graph, float scale, std::size_t min_size) {
-  return segmentSorted(graph, edgesByWeight(graph), scale, min_size);
+  if (!(scale >= 0.0f) || !std::isfinite(scale)) {
+    throw std::invalid_argument("the segmentation scale must be a finite number >= 0");
+  }
+  return segmentSorted(graph.vertex_count, edgesByWeight(graph), scale, min_size);
 }
 
 std::vector<Segmentation> segmentAtScales(const MeshGraph& graph, const std::vector<float>& scales,
                                           std::size_t min_size) {
-  const std::vector<std::size_t> order = edgesByWeight(graph);
+  for (float scale : scales) {
+    if (!(scale >= 0.0f) || !std::isfinite(scale)) {
+      throw std::invalid_argument("the segmentation scale must be a finite number >= 0");
+    }
+  }
+  const std::vector<MeshEdge> sorted = edgesByWeight(graph);
   std::vector<Segmentation> out(scales.size());
   tbb::parallel_for(std::size_t{0}, scales.size(), [&](std::size_t i) {
-    out[i] = segmentSorted(graph, order, scales[i], min_size);
+    out[i] = segmentSorted(graph.vertex_count, sorted, scales[i], min_size);
   });
   return out;
 }

@@ -7,7 +7,9 @@
 #include <numeric>
 #include <random>
 #include <stdexcept>
+#include <string>
 
+#include <tbb/parallel_for.h>
 #include <Eigen/Geometry>
 
 #include "point_index.h"
@@ -97,25 +99,39 @@ bool hullDistances(const std::vector<double>& xyz, std::vector<double>* distance
       qh_new_qhull(qh, 3, n, const_cast<double*>(xyz.data()), False, options, nullptr, sink);
   bool ok = error == 0;
   if (ok) {
-    struct Plane {
-      double nx, ny, nz, offset;
-    };
-    std::vector<Plane> planes;
+    // Inside a convex polytope, the distance to its surface is the distance to the nearest facet
+    // plane (outward normals: n . p + offset <= 0 inside). Planes and points as separate
+    // coordinate arrays, points in chunks that stay in cache: the inner loop is an element-wise
+    // minimum, which the compiler vectorises.
+    std::vector<double> nx, ny, nz, offset;
     facetT* facet;
     FORALLfacets {
-      planes.push_back({facet->normal[0], facet->normal[1], facet->normal[2], facet->offset});
+      nx.push_back(facet->normal[0]);
+      ny.push_back(facet->normal[1]);
+      nz.push_back(facet->normal[2]);
+      offset.push_back(facet->offset);
     }
-    distances->resize(static_cast<std::size_t>(n));
-    for (int i = 0; i < n; ++i) {
-      const double* p = &xyz[3 * static_cast<std::size_t>(i)];
-      // Inside a convex polytope, the distance to its surface is the distance to the nearest
-      // facet plane (outward normals: n . p + offset <= 0 inside).
-      double d = std::numeric_limits<double>::infinity();
-      for (const Plane& f : planes) {
-        d = std::min(d, -(f.nx * p[0] + f.ny * p[1] + f.nz * p[2] + f.offset));
+    const auto count = static_cast<std::size_t>(n);
+    std::vector<double> x(count), y(count), z(count);
+    for (std::size_t i = 0; i < count; ++i) {
+      x[i] = xyz[3 * i];
+      y[i] = xyz[3 * i + 1];
+      z[i] = xyz[3 * i + 2];
+    }
+    distances->assign(count, std::numeric_limits<double>::infinity());
+    double* d = distances->data();
+    constexpr std::size_t kChunk = 512;
+    for (std::size_t begin = 0; begin < count; begin += kChunk) {
+      const std::size_t end = std::min(count, begin + kChunk);
+      for (std::size_t f = 0; f < nx.size(); ++f) {
+        const double a = nx[f], b = ny[f], c = nz[f], o = offset[f];
+        for (std::size_t i = begin; i < end; ++i) {
+          const double e = -(a * x[i] + b * y[i] + c * z[i] + o);
+          d[i] = e < d[i] ? e : d[i];
+        }
       }
-      (*distances)[static_cast<std::size_t>(i)] = std::max(0.0, d);
     }
+    for (std::size_t i = 0; i < count; ++i) d[i] = std::max(0.0, d[i]);
   }
   qh_freeqhull(qh, !qh_ALL);
   int curlong = 0, totlong = 0;
@@ -167,24 +183,70 @@ VertexEdges vertexEdges(const MeshGraph& graph) {
   return out;
 }
 
+VertexTriangles vertexTriangles(const TriangleMesh& mesh) {
+  VertexTriangles out;
+  out.offsets.assign(mesh.positions.size() + 1, 0);
+  const auto smallest = [](const Eigen::Vector3i& t) {
+    return static_cast<std::size_t>(std::min({t[0], t[1], t[2]}));
+  };
+  for (const Eigen::Vector3i& t : mesh.triangles) ++out.offsets[smallest(t) + 1];
+  std::partial_sum(out.offsets.begin(), out.offsets.end(), out.offsets.begin());
+  out.triangles.resize(mesh.triangles.size());
+  std::vector<std::size_t> fill(out.offsets.begin(), out.offsets.end() - 1);
+  for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
+    out.triangles[fill[smallest(mesh.triangles[t])]++] = static_cast<std::int32_t>(t);
+  }
+  return out;
+}
+
+namespace {
+
+/// A segment's vertices (increasing) as a mask over the index range they span: membership in
+/// constant time, for the cost of one byte per index in that range.
+class Members {
+ public:
+  explicit Members(const std::vector<std::int32_t>& vertices)
+      : first_(vertices.empty() ? 0 : vertices.front()),
+        mask_(vertices.empty() ? 0 : static_cast<std::size_t>(vertices.back() - first_) + 1, 0) {
+    for (std::int32_t v : vertices) mask_[static_cast<std::size_t>(v - first_)] = 1;
+  }
+  bool contains(std::int32_t v) const {
+    const auto i = static_cast<std::size_t>(v - first_);  // wraps round below first_
+    return i < mask_.size() && mask_[i] != 0;
+  }
+
+ private:
+  std::int32_t first_;
+  std::vector<std::uint8_t> mask_;
+};
+
+}  // namespace
+
 double compactness(const TriangleMesh& mesh, const Segment& segment) {
-  std::vector<char> inside(mesh.positions.size(), 0);
+  return compactness(mesh, vertexTriangles(mesh), segment);
+}
+
+double compactness(const TriangleMesh& mesh, const VertexTriangles& by_vertex,
+                   const Segment& segment) {
+  if (by_vertex.offsets.size() != mesh.positions.size() + 1) {
+    throw std::invalid_argument("compactness: the triangle index was built for another mesh");
+  }
+  const Members in(segment.vertices);
   std::vector<Eigen::Vector3d> points;
   points.reserve(segment.vertices.size());
-  for (std::int32_t v : segment.vertices) {
-    inside[static_cast<std::size_t>(v)] = 1;
-    points.push_back(mesh.positions[static_cast<std::size_t>(v)].cast<double>());
-  }
   double area = 0.0;
-  for (const Eigen::Vector3i& t : mesh.triangles) {
-    if (!inside[static_cast<std::size_t>(t[0])] || !inside[static_cast<std::size_t>(t[1])] ||
-        !inside[static_cast<std::size_t>(t[2])]) {
-      continue;
+  for (std::int32_t v : segment.vertices) {
+    const auto vi = static_cast<std::size_t>(v);
+    points.push_back(mesh.positions[vi].cast<double>());
+    // The triangles whose smallest vertex is v: each of the segment's triangles once.
+    for (std::size_t k = by_vertex.offsets[vi]; k < by_vertex.offsets[vi + 1]; ++k) {
+      const Eigen::Vector3i& t = mesh.triangles[static_cast<std::size_t>(by_vertex.triangles[k])];
+      if (!in.contains(t[0]) || !in.contains(t[1]) || !in.contains(t[2])) continue;
+      const Eigen::Vector3d a = mesh.positions[static_cast<std::size_t>(t[0])].cast<double>();
+      const Eigen::Vector3d b = mesh.positions[static_cast<std::size_t>(t[1])].cast<double>();
+      const Eigen::Vector3d c = mesh.positions[static_cast<std::size_t>(t[2])].cast<double>();
+      area += 0.5 * (b - a).cross(c - a).norm();
     }
-    const Eigen::Vector3d a = mesh.positions[static_cast<std::size_t>(t[0])].cast<double>();
-    const Eigen::Vector3d b = mesh.positions[static_cast<std::size_t>(t[1])].cast<double>();
-    const Eigen::Vector3d c = mesh.positions[static_cast<std::size_t>(t[2])].cast<double>();
-    area += 0.5 * (b - a).cross(c - a).norm();
   }
   const Sphere s = smallestEnclosingSphere(std::move(points));
   return s.radius > 0.0 ? area / (4.0 * M_PI * s.radius * s.radius) : 0.0;
@@ -192,16 +254,14 @@ double compactness(const TriangleMesh& mesh, const Segment& segment) {
 
 double localConvexity(const MeshGraph& graph, const VertexEdges& by_vertex,
                       const Segment& segment) {
-  const auto inSegment = [&](std::int32_t v) {
-    return std::binary_search(segment.vertices.begin(), segment.vertices.end(), v);
-  };
+  const Members in(segment.vertices);
   std::size_t edges = 0, convex = 0;
   for (std::int32_t v : segment.vertices) {
     const auto vi = static_cast<std::size_t>(v);
     for (std::size_t k = by_vertex.offsets[vi]; k < by_vertex.offsets[vi + 1]; ++k) {
       const MeshEdge& e = graph.edges[static_cast<std::size_t>(by_vertex.edges[k])];
       // Each edge once: from its smaller end, when the larger one is in the segment too.
-      if (e.a != v || !inSegment(e.b)) continue;
+      if (e.a != v || !in.contains(e.b)) continue;
       ++edges;
       convex += e.convex ? 1 : 0;
     }
@@ -241,73 +301,138 @@ OrientedPoints orientedPoints(const TriangleMesh& mesh, const Segment& segment) 
   return out;
 }
 
-/// The one-sided overlap O(from, to, r): mean over `from` of the distance to the nearest point
-/// of `to` over r, plus beta (1 - the cosine between their normals).
-double overlap(const OrientedPoints& from, const OrientedPoints& to, const PointIndex& to_index,
-               float r, float beta) {
-  double sum = 0.0;
-  for (std::size_t i = 0; i < from.p.size(); ++i) {
-    const std::uint32_t j = to_index.nearest(from.p[i]);
-    sum += (from.p[i] - to.p[j]).norm() / r + beta * (1.0f - from.n[i].dot(to.n[j]));
-  }
-  return sum / static_cast<double>(from.p.size());
+/// The angular bin, 0 .. bins - 1, of the direction d in the tangent frame (t1, t2).
+int angularBin(const Eigen::Vector3f& d, const Eigen::Vector3f& t1, const Eigen::Vector3f& t2,
+               int bins) {
+  const float angle = std::atan2(d.dot(t2), d.dot(t1));  // (-pi, pi]
+  const int bin = static_cast<int>((angle + static_cast<float>(M_PI)) /
+                                   (2.0f * static_cast<float>(M_PI)) * static_cast<float>(bins));
+  return std::clamp(bin, 0, bins - 1);
 }
 
 }  // namespace
 
 double symmetry(const TriangleMesh& mesh, const Segment& segment, float beta) {
-  const OrientedPoints original = orientedPoints(mesh, segment);
+  const OrientedPoints pts = orientedPoints(mesh, segment);
   const float lambda_sum = segment.eigenvalues.sum();
   if (!(lambda_sum > 0.0f)) return 0.0;
-  const PointIndex original_index(original.p);
+  const PointIndex index(pts.p);
+  const std::size_t n = pts.p.size();
   double total = 0.0;
   for (int d = 0; d < 3; ++d) {
     const float r = segment.extents[d];
     if (!(r > 0.0f)) continue;
     const Eigen::Vector3f a = segment.axes.col(d);
-    OrientedPoints mirrored;
-    mirrored.p.reserve(original.p.size());
-    mirrored.n.reserve(original.n.size());
-    for (std::size_t i = 0; i < original.p.size(); ++i) {
-      mirrored.p.push_back(original.p[i] - 2.0f * original.p[i].dot(a) * a);
-      mirrored.n.push_back(original.n[i] - 2.0f * original.n[i].dot(a) * a);
+    // O(MC, C): each mirrored vertex against the original's nearest. It equals O(C, MC), since
+    // |p - M q| = |M p - q| and n . M n' = M n . n' (M is a reflection), so the nearest mirrored
+    // vertex to p is the mirror of the nearest original vertex to M p.
+    double sum = 0.0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const Eigen::Vector3f q = pts.p[i] - 2.0f * pts.p[i].dot(a) * a;
+      const Eigen::Vector3f nq = pts.n[i] - 2.0f * pts.n[i].dot(a) * a;
+      const std::uint32_t j = index.nearest(q);
+      sum += (q - pts.p[j]).norm() / r + beta * (1.0f - nq.dot(pts.n[j]));
     }
-    const PointIndex mirrored_index(mirrored.p);
-    const double both = overlap(original, mirrored, mirrored_index, r, beta) +
-                        overlap(mirrored, original, original_index, r, beta);
+    const double both = 2.0 * sum / static_cast<double>(n);
     total += static_cast<double>(segment.eigenvalues[d] / lambda_sum) * both;
   }
   return total;
 }
 
-double smoothness(const TriangleMesh& mesh, const Segment& segment, float radius_m, int bins) {
-  if (!(radius_m > 0.0f) || bins < 2) {
-    throw std::invalid_argument("smoothness needs a positive radius and at least 2 bins");
+TangentNeighbours tangentNeighbours(const TriangleMesh& mesh,
+                                    const std::vector<std::int32_t>& vertices, float radius_m,
+                                    int bins) {
+  if (!(radius_m > 0.0f) || bins < 2 || bins > 255) {
+    throw std::invalid_argument(
+        "smoothness needs a positive radius and between 2 and 255 angular bins");
   }
-  const OrientedPoints pts = orientedPoints(mesh, segment);
-  const PointIndex index(pts.p);
-  std::vector<std::pair<std::uint32_t, float>> found;
-  std::vector<int> histogram(static_cast<std::size_t>(bins));
-  const double log_bins = std::log(static_cast<double>(bins));
+  if (!mesh.hasNormals()) throw std::invalid_argument("the mesh has no vertex normals");
+  TangentNeighbours out;
+  out.radius_m = radius_m;
+  out.bins = bins;
+  out.indexed.assign(mesh.positions.size(), 0);
+  std::vector<Eigen::Vector3f> points;
+  points.reserve(vertices.size());
+  for (std::int32_t v : vertices) {
+    if (v < 0 || static_cast<std::size_t>(v) >= mesh.positions.size()) {
+      throw std::invalid_argument("smoothness: vertex " + std::to_string(v) +
+                                  " is not in the mesh");
+    }
+    if (!points.empty() && v <= vertices[points.size() - 1]) {
+      throw std::invalid_argument("smoothness: the vertices must be given in increasing order");
+    }
+    out.indexed[static_cast<std::size_t>(v)] = 1;
+    points.push_back(mesh.positions[static_cast<std::size_t>(v)]);
+  }
+  const PointIndex index(points);
+  // Blocks of vertices in parallel, each writing its own rows; joined in order afterwards.
+  struct Block {
+    std::vector<std::uint32_t> counts;
+    std::vector<std::int32_t> neighbours;
+    std::vector<std::uint8_t> bin;
+  };
+  constexpr std::size_t kBlock = 2048;
+  std::vector<Block> blocks((vertices.size() + kBlock - 1) / kBlock);
+  tbb::parallel_for(std::size_t{0}, blocks.size(), [&](std::size_t b) {
+    Block& block = blocks[b];
+    std::vector<std::pair<std::uint32_t, float>> found;
+    const std::size_t end = std::min(vertices.size(), (b + 1) * kBlock);
+    for (std::size_t i = b * kBlock; i < end; ++i) {
+      const Eigen::Vector3f& n = mesh.normals[static_cast<std::size_t>(vertices[i])];
+      // A tangent frame (t1, t2) at the vertex.
+      const Eigen::Vector3f helper =
+          std::abs(n.x()) < 0.9f ? Eigen::Vector3f::UnitX() : Eigen::Vector3f::UnitY();
+      const Eigen::Vector3f t1 = n.cross(helper).normalized();
+      const Eigen::Vector3f t2 = n.cross(t1);
+      index.within(points[i], radius_m, &found);
+      std::uint32_t count = 0;
+      for (const auto& [j, distance_sq] : found) {
+        if (j == i) continue;
+        block.neighbours.push_back(vertices[j]);
+        block.bin.push_back(
+            static_cast<std::uint8_t>(angularBin(points[j] - points[i], t1, t2, bins)));
+        ++count;
+      }
+      block.counts.push_back(count);
+    }
+  });
+  out.offsets.assign(mesh.positions.size() + 1, 0);
+  std::size_t i = 0;
+  for (const Block& block : blocks) {
+    for (std::uint32_t count : block.counts) {
+      out.offsets[static_cast<std::size_t>(vertices[i++]) + 1] = count;
+    }
+  }
+  std::partial_sum(out.offsets.begin(), out.offsets.end(), out.offsets.begin());
+  out.neighbours.reserve(out.offsets.back());
+  out.bin.reserve(out.offsets.back());
+  for (const Block& block : blocks) {
+    out.neighbours.insert(out.neighbours.end(), block.neighbours.begin(), block.neighbours.end());
+    out.bin.insert(out.bin.end(), block.bin.begin(), block.bin.end());
+  }
+  return out;
+}
+
+double smoothness(const TriangleMesh& mesh, const Segment& segment, float radius_m, int bins) {
+  return smoothness(tangentNeighbours(mesh, segment.vertices, radius_m, bins), segment);
+}
+
+double smoothness(const TangentNeighbours& neighbours, const Segment& segment) {
+  const Members in(segment.vertices);
+  std::vector<int> histogram(static_cast<std::size_t>(neighbours.bins));
+  const double log_bins = std::log(static_cast<double>(neighbours.bins));
   double sum = 0.0;
-  for (std::size_t i = 0; i < pts.p.size(); ++i) {
-    const Eigen::Vector3f& n = pts.n[i];
-    // A tangent frame (t1, t2) at the vertex.
-    const Eigen::Vector3f helper =
-        std::abs(n.x()) < 0.9f ? Eigen::Vector3f::UnitX() : Eigen::Vector3f::UnitY();
-    const Eigen::Vector3f t1 = n.cross(helper).normalized();
-    const Eigen::Vector3f t2 = n.cross(t1);
-    index.within(pts.p[i], radius_m, &found);
+  for (std::int32_t v : segment.vertices) {
+    const auto vi = static_cast<std::size_t>(v);
+    if (vi >= neighbours.indexed.size() || !neighbours.indexed[vi]) {
+      throw std::invalid_argument("smoothness: vertex " + std::to_string(v) +
+                                  " is not among the vertices its look-ups were built for");
+    }
     std::fill(histogram.begin(), histogram.end(), 0);
     int count = 0;
-    for (const auto& [j, distance_sq] : found) {
-      if (j == i) continue;
-      const Eigen::Vector3f d = pts.p[j] - pts.p[i];
-      const float angle = std::atan2(d.dot(t2), d.dot(t1));  // (-pi, pi]
-      int bin = static_cast<int>((angle + static_cast<float>(M_PI)) /
-                                 (2.0f * static_cast<float>(M_PI)) * static_cast<float>(bins));
-      bin = std::clamp(bin, 0, bins - 1);
-      ++histogram[static_cast<std::size_t>(bin)];
+    for (std::size_t k = neighbours.offsets[vi]; k < neighbours.offsets[vi + 1]; ++k) {
+      if (!in.contains(neighbours.neighbours[k])) continue;
+      ++histogram[neighbours.bin[k]];
       ++count;
     }
     double entropy = 0.0;
@@ -318,7 +443,7 @@ double smoothness(const TriangleMesh& mesh, const Segment& segment, float radius
     }
     sum += entropy / log_bins;
   }
-  return sum / static_cast<double>(pts.p.size());
+  return sum / static_cast<double>(segment.vertices.size());
 }
 
 }  // namespace objscan::discovery

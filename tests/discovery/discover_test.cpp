@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "objscan/discovery/discover.h"
+#include "objscan/discovery/segmentation.h"
 #include "test_support.h"
 
 namespace objscan::discovery {
@@ -57,6 +58,65 @@ TEST(Discover, FindsBothObjectsOnATableAndRanksThemFirst) {
   for (std::size_t i = 1; i < h.size(); ++i) EXPECT_GE(h[i - 1].score, h[i].score);
   EXPECT_GT(h[0].measures.local_convexity, 0.3);
   EXPECT_GE(timings.segment_ms, 0.0);
+}
+
+TEST(Discover, MatchesMeasuringEveryCandidateOnItsOwn) {
+  // The reference: every candidate measured by the stand-alone functions, repeats included.
+  // discoverObjects shares per-scene look-ups and measures a repeated segment once; neither may
+  // change a measure, a score or the hypotheses.
+  const TriangleMesh mesh = table(true);
+  DiscoveryConfig config;
+  config.scales.push_back(config.scales[3]);  // a scale twice: its candidates all repeat
+  config.scale_with_density = false;          // the reference below uses the scales as given
+  const MeshGraph graph = buildMeshGraph(mesh);
+  const VertexEdges by_vertex = vertexEdges(graph);
+  const std::vector<Segment> candidates = candidateSegments(
+      mesh, segmentAtScales(graph, config.scales, config.min_size), config.min_size, config.filter);
+  const std::vector<std::size_t> first = firstOfEach(candidates);
+  std::size_t repeats = 0;
+  for (std::size_t i = 0; i < first.size(); ++i) repeats += first[i] != i ? 1 : 0;
+  ASSERT_GT(repeats, 0u);  // so that measuring repeats once is exercised
+  std::vector<ShapeMeasures> measures;
+  for (const Segment& s : candidates) {
+    ShapeMeasures m;
+    m.compactness = compactness(mesh, s);
+    m.symmetry = symmetry(mesh, s, config.symmetry_beta);
+    m.smoothness = smoothness(mesh, s, config.smoothness_radius_m, config.smoothness_bins);
+    m.local_convexity = localConvexity(graph, by_vertex, s);
+    m.global_convexity = hullDistance(mesh, s);
+    measures.push_back(m);
+  }
+  MeasureCpuMs cpu{};
+  const std::vector<ShapeMeasures> fast = measureCandidates(mesh, graph, candidates, config, &cpu);
+  ASSERT_EQ(fast.size(), measures.size());
+  for (std::size_t i = 0; i < fast.size(); ++i) {
+    // Bit for bit: the same arithmetic, whether the look-ups are the scene's or the segment's.
+    EXPECT_EQ(fast[i].compactness, measures[i].compactness) << "candidate " << i;
+    EXPECT_EQ(fast[i].symmetry, measures[i].symmetry) << "candidate " << i;
+    EXPECT_EQ(fast[i].smoothness, measures[i].smoothness) << "candidate " << i;
+    EXPECT_EQ(fast[i].local_convexity, measures[i].local_convexity) << "candidate " << i;
+    EXPECT_EQ(fast[i].global_convexity, measures[i].global_convexity) << "candidate " << i;
+  }
+  for (double ms : cpu) EXPECT_GE(ms, 0.0);
+  EXPECT_GT(cpu[1], 0.0);  // symmetry, the costliest, takes measurable time
+
+  const std::vector<double> scores = averageScores(measures);
+  const std::vector<std::size_t> kept = suppressOverlaps(candidates, scores, config.max_iou);
+
+  DiscoveryTimings timings;
+  const std::vector<Hypothesis> h = discoverObjects(mesh, config, &timings);
+  EXPECT_EQ(timings.candidate_count, candidates.size());
+  ASSERT_EQ(h.size(), kept.size());
+  for (std::size_t i = 0; i < h.size(); ++i) {
+    const std::size_t k = kept[i];
+    EXPECT_EQ(h[i].segment.vertices, candidates[k].vertices);
+    EXPECT_DOUBLE_EQ(h[i].score, scores[k]);
+    EXPECT_DOUBLE_EQ(h[i].measures.compactness, measures[k].compactness);
+    EXPECT_DOUBLE_EQ(h[i].measures.symmetry, measures[k].symmetry);
+    EXPECT_DOUBLE_EQ(h[i].measures.smoothness, measures[k].smoothness);
+    EXPECT_DOUBLE_EQ(h[i].measures.local_convexity, measures[k].local_convexity);
+    EXPECT_DOUBLE_EQ(h[i].measures.global_convexity, measures[k].global_convexity);
+  }
 }
 
 TEST(Discover, ABareTableHasNoCandidatesAndAMeshWithoutNormalsIsRejected) {

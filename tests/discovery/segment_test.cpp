@@ -85,6 +85,37 @@ TEST(Segment, CandidatesKeepLargeEnoughSegmentsThatPassAndIoUCountsSharedVertice
   EXPECT_DOUBLE_EQ(vertexIoU({1}, {2}), 0.0);
 }
 
+TEST(Segment, RepeatsAcrossScalesAreDescribedOnceAndFoundByFirstOfEach) {
+  const TriangleMesh mesh = box({0.10f, 0.08f, 0.08f});  // 1331 points
+  const auto split = [&](float scale, std::size_t at, bool swap_labels) {
+    Segmentation seg;
+    seg.scale = scale;
+    seg.segment_count = 2;
+    for (std::size_t v = 0; v < mesh.positions.size(); ++v) {
+      seg.labels.push_back((v < at) != swap_labels ? 0 : 1);
+    }
+    return seg;
+  };
+  // Scale 3 repeats scale 2's two segments under swapped labels; scale 4 cuts elsewhere.
+  const std::vector<Segment> c = candidateSegments(
+      mesh, {split(2.0f, 700, false), split(3.0f, 700, true), split(4.0f, 600, false)}, 500,
+      SegmentFilter{});
+  ASSERT_EQ(c.size(), 6u);
+  const float scales[] = {2, 2, 3, 3, 4, 4};
+  for (std::size_t i = 0; i < c.size(); ++i) {
+    // Each exactly as if described on its own, with its own scale.
+    const Segment alone = describeSegment(mesh, c[i].vertices, scales[i]);
+    EXPECT_EQ(c[i].scale, scales[i]);
+    EXPECT_EQ(c[i].centroid, alone.centroid);
+    EXPECT_EQ(c[i].axes, alone.axes);
+    EXPECT_EQ(c[i].eigenvalues, alone.eigenvalues);
+    EXPECT_EQ(c[i].extents, alone.extents);
+  }
+  EXPECT_EQ(c[2].vertices.front(), 700);  // scale 3's label 0 is the part from 700 on
+  EXPECT_EQ(firstOfEach(c), (std::vector<std::size_t>{0, 1, 1, 0, 4, 5}));
+  EXPECT_TRUE(firstOfEach({}).empty());
+}
+
 TEST(Segment, SuppressionKeepsTheBetterOfOverlappingSegments) {
   const auto range = [](std::int32_t from, std::int32_t to) {
     Segment s;

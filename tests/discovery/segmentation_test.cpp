@@ -3,9 +3,12 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <map>
+#include <numeric>
+#include <random>
 #include <set>
 #include <stdexcept>
 #include <vector>
@@ -62,6 +65,117 @@ TEST(MeshGraph, EveryTriangleEdgeOnceWithItsWeight) {
   EXPECT_THROW(buildMeshGraph(no_normals), std::invalid_argument);
 }
 
+TEST(MeshGraph, EdgesMatchABruteForceListOnARandomMesh) {
+  const TriangleMesh mesh = objscan::testing::makeRandomMesh(7, 300, 900, true, false);
+  std::set<std::pair<std::int32_t, std::int32_t>> expected;
+  for (const Eigen::Vector3i& t : mesh.triangles) {
+    for (int k = 0; k < 3; ++k) {
+      expected.emplace(std::min(t[k], t[(k + 1) % 3]), std::max(t[k], t[(k + 1) % 3]));
+    }
+  }
+  const MeshGraph graph = buildMeshGraph(mesh);
+  ASSERT_EQ(graph.edges.size(), expected.size());
+  std::size_t e = 0;
+  for (const auto& [a, b] : expected) {  // the set's order is (a, b)'s
+    const MeshEdge& edge = graph.edges[e++];
+    ASSERT_EQ(edge.a, a);
+    ASSERT_EQ(edge.b, b);
+    const auto i = static_cast<std::size_t>(a), j = static_cast<std::size_t>(b);
+    EXPECT_EQ(edge.convex,
+              isConvex(mesh.positions[i], mesh.normals[i], mesh.positions[j], mesh.normals[j]));
+    EXPECT_EQ(edge.weight, edgeWeight(mesh.normals[i], mesh.normals[j], edge.convex));
+  }
+}
+
+/// Felzenszwalb-Huttenlocher as plainly as it can be written: the edges sorted by (weight, index)
+/// with std::sort, union-find with path halving and union by size, every edge looked at in both
+/// passes; labels in order of each segment's first vertex.
+std::vector<std::int32_t> referenceLabels(const MeshGraph& graph, float scale,
+                                          std::size_t min_size) {
+  std::vector<std::size_t> order(graph.edges.size());
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  std::sort(order.begin(), order.end(), [&](std::size_t x, std::size_t y) {
+    const float wx = graph.edges[x].weight, wy = graph.edges[y].weight;
+    return wx < wy || (wx == wy && x < y);
+  });
+  std::vector<std::int32_t> parent(graph.vertex_count);
+  std::iota(parent.begin(), parent.end(), 0);
+  std::vector<std::size_t> size(graph.vertex_count, 1);
+  std::vector<float> internal(graph.vertex_count, 0.0f);
+  const auto find = [&](std::int32_t x) {
+    while (parent[static_cast<std::size_t>(x)] != x) {
+      parent[static_cast<std::size_t>(x)] =
+          parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(x)])];
+      x = parent[static_cast<std::size_t>(x)];
+    }
+    return static_cast<std::size_t>(x);
+  };
+  const auto join = [&](std::size_t a, std::size_t b, float w) {
+    if (size[a] < size[b]) std::swap(a, b);
+    parent[b] = static_cast<std::int32_t>(a);
+    size[a] += size[b];
+    internal[a] = w;
+  };
+  for (std::size_t e : order) {
+    const MeshEdge& edge = graph.edges[e];
+    const std::size_t a = find(edge.a), b = find(edge.b);
+    if (a != b && edge.weight <= std::min(internal[a] + scale / static_cast<float>(size[a]),
+                                          internal[b] + scale / static_cast<float>(size[b]))) {
+      join(a, b, edge.weight);
+    }
+  }
+  for (std::size_t e : order) {
+    const MeshEdge& edge = graph.edges[e];
+    const std::size_t a = find(edge.a), b = find(edge.b);
+    if (a != b && (size[a] < min_size || size[b] < min_size)) {
+      join(a, b, std::max({edge.weight, internal[a], internal[b]}));
+    }
+  }
+  std::vector<std::int32_t> labels(graph.vertex_count), label_of_root(graph.vertex_count, -1);
+  std::int32_t next = 0;
+  for (std::size_t v = 0; v < graph.vertex_count; ++v) {
+    const std::size_t root = find(static_cast<std::int32_t>(v));
+    if (label_of_root[root] < 0) label_of_root[root] = next++;
+    labels[v] = label_of_root[root];
+  }
+  return labels;
+}
+
+TEST(Segmentation, MatchesAPlainReferenceWithTiedNegativeAndSignedZeroWeights) {
+  // A 40 x 40 grid graph whose weights come from a short list, so that most are tied with
+  // others and their order decides the merges; -0 and +0 are the same weight.
+  const int n = 40;
+  MeshGraph graph;
+  graph.vertex_count = n * n;
+  const float values[] = {-0.5f, -0.0f, 0.0f, 0.001f, 0.25f, 0.25f, 1.0f, 3.0f};
+  std::mt19937 random(3);
+  for (int y = 0; y < n; ++y) {
+    for (int x = 0; x < n; ++x) {
+      const int v = y * n + x;
+      for (int w : {x + 1 < n ? v + 1 : -1, y + 1 < n ? v + n : -1}) {
+        if (w >= 0) graph.edges.push_back({v, w, values[random() % 8], false});
+      }
+    }
+  }
+  for (float scale : {0.0f, 0.3f, 2.0f, 40.0f}) {
+    for (std::size_t min_size : {1u, 5u, 60u}) {
+      const Segmentation s = segmentGraph(graph, scale, min_size);
+      EXPECT_EQ(s.labels, referenceLabels(graph, scale, min_size))
+          << "scale " << scale << ", min_size " << min_size;
+    }
+  }
+  // And on a real surface, every scale of segmentAtScales.
+  const TriangleMesh mesh = makeHeightField(61, 0.1f, [](float x, float y) {
+    return 0.01f * std::sin(60.0f * x) * std::cos(40.0f * y) + bump(x, y);
+  });
+  const MeshGraph surface = buildMeshGraph(mesh);
+  const std::vector<float> scales = {0.01f, 0.1f, 1.0f, 10.0f};
+  const std::vector<Segmentation> all = segmentAtScales(surface, scales, 30);
+  for (std::size_t i = 0; i < scales.size(); ++i) {
+    EXPECT_EQ(all[i].labels, referenceLabels(surface, scales[i], 30)) << "scale " << scales[i];
+  }
+}
+
 TEST(Segmentation, SplitsABumpFromItsTableAtTheConcaveFoot) {
   const TriangleMesh mesh = makeHeightField(81, 0.1f, bump);  // 2.5 mm spacing
   const MeshGraph graph = buildMeshGraph(mesh);
@@ -109,6 +223,7 @@ TEST(Segmentation, LargerScalesGiveFewerSegmentsAndSmallOnesAreMerged) {
   }
   EXPECT_THROW(segmentGraph(graph, -1.0f, 30), std::invalid_argument);
   EXPECT_THROW(segmentGraph(graph, std::nanf(""), 30), std::invalid_argument);
+  EXPECT_THROW(segmentAtScales(graph, {1.0f, -1.0f}, 30), std::invalid_argument);
 }
 
 }  // namespace

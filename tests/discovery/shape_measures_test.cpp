@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <limits>
+#include <random>
 #include <stdexcept>
 #include <vector>
 
@@ -95,6 +97,26 @@ Segment whole(const TriangleMesh& mesh) {
   return describeSegment(mesh, v);
 }
 
+/// The vertices of `mesh` for which `inside` holds, as a segment.
+Segment part(const TriangleMesh& mesh, const std::function<bool(const Eigen::Vector3f&)>& inside) {
+  std::vector<std::int32_t> v;
+  for (std::size_t i = 0; i < mesh.positions.size(); ++i) {
+    if (inside(mesh.positions[i])) v.push_back(static_cast<std::int32_t>(i));
+  }
+  return describeSegment(mesh, v);
+}
+
+/// `mesh` with every vertex moved by up to `amount` along each axis (fixed seed) and its normals
+/// recomputed: no two distances tie by accident.
+TriangleMesh jittered(TriangleMesh mesh, float amount) {
+  std::mt19937 random(11);
+  std::uniform_real_distribution<float> offset(-amount, amount);
+  for (Eigen::Vector3f& p : mesh.positions)
+    p += Eigen::Vector3f(offset(random), offset(random), offset(random));
+  mesh.computeNormals();
+  return mesh;
+}
+
 TEST(SmallestEnclosingSphere, OfKnownPointSets) {
   // The 8 corners of a cube of side 2: radius sqrt(3) about the centre.
   std::vector<Eigen::Vector3d> cube;
@@ -164,6 +186,160 @@ TEST(ShapeMeasures, SymmetryOfASphereAndOfALopsidedShape) {
                            x > 0.15f ? 2.0f * (x - 0.15f) * (x - 0.15f) * 40.0f : 0.0f);
   });
   EXPECT_GT(symmetry(hook, whole(hook)), 4.0 * round);
+}
+
+TEST(ShapeMeasures, CompactnessAndLocalConvexityOfAPartCountOnlyItsOwnTrianglesAndEdges) {
+  const TriangleMesh ball = jittered(sphere(0.05f), 5e-4f);
+  const Segment cap = part(ball, [](const Eigen::Vector3f& p) { return p.z() > 0.01f; });
+  // Brute force: every triangle of the mesh, kept when its three vertices are in the cap.
+  const auto in = [&](std::int32_t v) {
+    return std::binary_search(cap.vertices.begin(), cap.vertices.end(), v);
+  };
+  double area = 0.0;
+  for (const Eigen::Vector3i& t : ball.triangles) {
+    if (!in(t[0]) || !in(t[1]) || !in(t[2])) continue;
+    const Eigen::Vector3d a = ball.positions[static_cast<std::size_t>(t[0])].cast<double>();
+    const Eigen::Vector3d b = ball.positions[static_cast<std::size_t>(t[1])].cast<double>();
+    const Eigen::Vector3d c = ball.positions[static_cast<std::size_t>(t[2])].cast<double>();
+    area += 0.5 * (b - a).cross(c - a).norm();
+  }
+  std::vector<Eigen::Vector3d> points;
+  for (std::int32_t v : cap.vertices) {
+    points.push_back(ball.positions[static_cast<std::size_t>(v)].cast<double>());
+  }
+  const double radius = smallestEnclosingSphere(points).radius;
+  const double expected = area / (4.0 * M_PI * radius * radius);
+  EXPECT_GT(expected, 0.1);
+  // Summed in another order: equal up to rounding.
+  EXPECT_NEAR(compactness(ball, cap), expected, 1e-12);
+  EXPECT_NEAR(compactness(ball, vertexTriangles(ball), cap), expected, 1e-12);
+  EXPECT_THROW(compactness(ball, vertexTriangles(sheet(0.1f)), cap), std::invalid_argument);
+
+  const MeshGraph graph = buildMeshGraph(ball);
+  std::size_t edges = 0, convex = 0;
+  for (const MeshEdge& e : graph.edges) {
+    if (!in(e.a) || !in(e.b)) continue;
+    ++edges;
+    convex += e.convex ? 1 : 0;
+  }
+  ASSERT_GT(edges, 0u);
+  EXPECT_DOUBLE_EQ(localConvexity(graph, vertexEdges(graph), cap),
+                   static_cast<double>(convex) / static_cast<double>(edges));
+}
+
+/// Symmetry as the paper writes it: for each axis, the segment's mirror image built explicitly,
+/// and both one-sided overlaps found by brute force.
+double referenceSymmetry(const TriangleMesh& mesh, const Segment& s, float beta) {
+  std::vector<Eigen::Vector3f> p, n;
+  for (std::int32_t v : s.vertices) {
+    p.push_back(mesh.positions[static_cast<std::size_t>(v)] - s.centroid);
+    n.push_back(mesh.normals[static_cast<std::size_t>(v)]);
+  }
+  const auto overlap =
+      [&](const std::vector<Eigen::Vector3f>& p1, const std::vector<Eigen::Vector3f>& n1,
+          const std::vector<Eigen::Vector3f>& p2, const std::vector<Eigen::Vector3f>& n2, float r) {
+        double sum = 0.0;
+        for (std::size_t i = 0; i < p1.size(); ++i) {
+          std::size_t best = 0;
+          float best_d = std::numeric_limits<float>::infinity();
+          for (std::size_t j = 0; j < p2.size(); ++j) {
+            const float d = (p1[i] - p2[j]).squaredNorm();
+            if (d < best_d) {
+              best_d = d;
+              best = j;
+            }
+          }
+          sum += std::sqrt(best_d) / r + beta * (1.0f - n1[i].dot(n2[best]));
+        }
+        return sum / static_cast<double>(p1.size());
+      };
+  const float lambda_sum = s.eigenvalues.sum();
+  double total = 0.0;
+  for (int d = 0; d < 3; ++d) {
+    const Eigen::Vector3f a = s.axes.col(d);
+    std::vector<Eigen::Vector3f> mp, mn;
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      mp.push_back(p[i] - 2.0f * p[i].dot(a) * a);
+      mn.push_back(n[i] - 2.0f * n[i].dot(a) * a);
+    }
+    const float r = s.extents[d];
+    total += static_cast<double>(s.eigenvalues[d] / lambda_sum) *
+             (overlap(p, n, mp, mn, r) + overlap(mp, mn, p, n, r));
+  }
+  return total;
+}
+
+TEST(ShapeMeasures, SymmetryEqualsBothSidesComputedByBruteForce) {
+  // The lopsided hook, jittered: one side is computed and doubled, which must equal the two
+  // sides found separately, up to float rounding of the distances.
+  const TriangleMesh hook =
+      jittered(parametric(40, 20, false, false,
+                          [](float u, float v) {
+                            const float x = 0.2f * u;
+                            return Eigen::Vector3f(
+                                x, 0.08f * v, x > 0.15f ? 80.0f * (x - 0.15f) * (x - 0.15f) : 0.0f);
+                          }),
+               1e-3f);
+  const Segment all = whole(hook);
+  const double expected = referenceSymmetry(hook, all, 0.2f);
+  EXPECT_GT(expected, 0.1);
+  EXPECT_NEAR(symmetry(hook, all, 0.2f), expected, 1e-5 * expected);
+  const Segment half = part(hook, [](const Eigen::Vector3f& p) { return p.y() < 0.05f; });
+  EXPECT_NEAR(symmetry(hook, half, 0.5f), referenceSymmetry(hook, half, 0.5f),
+              1e-5 * referenceSymmetry(hook, half, 0.5f));
+}
+
+/// Smoothness by brute force: for each vertex of the segment, every other vertex of the segment
+/// within the radius, binned by its direction in the same tangent frame.
+double referenceSmoothness(const TriangleMesh& mesh, const Segment& s, float radius, int bins) {
+  double sum = 0.0;
+  for (std::int32_t v : s.vertices) {
+    const Eigen::Vector3f& p = mesh.positions[static_cast<std::size_t>(v)];
+    const Eigen::Vector3f& n = mesh.normals[static_cast<std::size_t>(v)];
+    const Eigen::Vector3f helper =
+        std::abs(n.x()) < 0.9f ? Eigen::Vector3f::UnitX() : Eigen::Vector3f::UnitY();
+    const Eigen::Vector3f t1 = n.cross(helper).normalized(), t2 = n.cross(t1);
+    std::vector<int> histogram(static_cast<std::size_t>(bins), 0);
+    int count = 0;
+    for (std::int32_t w : s.vertices) {
+      const Eigen::Vector3f d = mesh.positions[static_cast<std::size_t>(w)] - p;
+      if (w == v || !(d.squaredNorm() < radius * radius)) continue;
+      const float angle = std::atan2(d.dot(t2), d.dot(t1));
+      const int bin = std::clamp(
+          static_cast<int>((angle + kPi) / (2.0f * kPi) * static_cast<float>(bins)), 0, bins - 1);
+      ++histogram[static_cast<std::size_t>(bin)];
+      ++count;
+    }
+    double entropy = 0.0;
+    for (int c : histogram) {
+      if (c > 0)
+        entropy -= static_cast<double>(c) / count * std::log(static_cast<double>(c) / count);
+    }
+    sum += entropy / std::log(static_cast<double>(bins));
+  }
+  return sum / static_cast<double>(s.vertices.size());
+}
+
+TEST(ShapeMeasures, SmoothnessFromSharedSceneLookUpsEqualsBruteForcePerSegment) {
+  const TriangleMesh ball = jittered(sphere(0.05f), 5e-4f);
+  const Segment upper = part(ball, [](const Eigen::Vector3f& p) { return p.z() > 0.0f; });
+  const Segment band = part(ball, [](const Eigen::Vector3f& p) { return std::abs(p.z()) < 0.02f; });
+  // One set of look-ups for the whole scene serves both overlapping segments: the neighbours
+  // outside a segment are left out of its histograms.
+  const TangentNeighbours scene = tangentNeighbours(ball, whole(ball).vertices, 0.015f, 8);
+  for (const Segment* s : {&upper, &band}) {
+    const double expected = referenceSmoothness(ball, *s, 0.015f, 8);
+    EXPECT_GT(expected, 0.3);
+    EXPECT_NEAR(smoothness(scene, *s), expected, 1e-12);
+    EXPECT_NEAR(smoothness(ball, *s, 0.015f, 8), expected, 1e-12);
+  }
+  // Look-ups built for the upper half know nothing of the band's lower vertices.
+  const TangentNeighbours upper_only = tangentNeighbours(ball, upper.vertices, 0.015f, 8);
+  EXPECT_NEAR(smoothness(upper_only, upper), smoothness(scene, upper), 1e-12);
+  EXPECT_THROW(smoothness(upper_only, band), std::invalid_argument);
+  EXPECT_THROW(tangentNeighbours(ball, upper.vertices, 0.015f, 256), std::invalid_argument);
+  EXPECT_THROW(tangentNeighbours(ball, {-1}, 0.015f, 8), std::invalid_argument);
+  EXPECT_THROW(tangentNeighbours(ball, {2, 1}, 0.015f, 8), std::invalid_argument);
 }
 
 TEST(ShapeMeasures, SmoothnessOfASheetAndOfAThinStrip) {

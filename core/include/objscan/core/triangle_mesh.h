@@ -42,6 +42,11 @@ struct TriangleMesh {
   /// Sum of triangle areas, m².
   double surfaceArea() const;
 
+  /// The part of the mesh on `vertices` (increasing indices into it): those vertices with their
+  /// normals, colours and labels, renumbered in order, and the triangles whose three vertices are
+  /// all among them. Throws std::invalid_argument for an index outside the mesh or out of order.
+  TriangleMesh subset(const std::vector<std::int32_t>& vertices) const;
+
   friend bool operator==(const TriangleMesh&, const TriangleMesh&) = default;
 };
 

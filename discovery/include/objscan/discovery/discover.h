@@ -1,53 +1,130 @@
 #pragma once
 
+#include <array>
 #include <cstddef>
+#include <cstdint>
+#include <string>
 #include <vector>
 
 #include "objscan/core/triangle_mesh.h"
 #include "objscan/discovery/mesh_graph.h"
+#include "objscan/discovery/recurrence.h"
+#include "objscan/discovery/scoring.h"
 #include "objscan/discovery/segment.h"
 #include "objscan/discovery/shape_measures.h"
 
-/// One scene mesh to ranked object hypotheses: the paper's section IV without recurrence (which
-/// needs the catalog of other scenes) and with the unsupervised score.
+/// One scene mesh to ranked object hypotheses (the paper's section IV): graph, segmentation at
+/// several scales, hard filters, the five shape measures (findCandidates); recurrence against
+/// other scenes (addRecurrence); scores and non-maximum suppression (rankCandidates).
 namespace objscan::discovery {
 
 struct DiscoveryConfig {
-  /// Felzenszwalb-Huttenlocher granularities: ten doublings from 5. Chosen on the fused TUM
-  /// desk (5.86 mm voxels, 207 k vertices, the paper's density): below 5 the segments barely
-  /// change, above 2560 objects are merged with their supports. Not yet scaled with density.
+  /// Felzenszwalb-Huttenlocher granularities k at the reference density: ten doublings from 5.
+  /// Chosen on the fused TUM desk (5.86 mm voxels, the paper's density): below 5 the segments
+  /// barely change, above 2560 objects merge with their supports.
   std::vector<float> scales = {5, 10, 20, 40, 80, 160, 320, 640, 1280, 2560};
-  std::size_t min_size = 500;  ///< the paper's m_size, at its density
+  std::size_t min_size = 500;  ///< the paper's m_size (section IV-A), at the reference density
+  /// Scale min_size and the scales with the mesh's vertex density: both count vertices, so a mesh
+  /// with twice the vertices per square metre gets twice the values and the same segments in
+  /// metres. The density is read as (reference_spacing_m / median edge length)^2.
+  bool scale_with_density = true;
+  /// Median edge length of a mesh at the paper's density: marching cubes on KinFu's 3 m / 512
+  /// voxels (5.86 mm), measured on objscan fuse's meshes of TUM fr2/desk and the synthetic scenes.
+  float reference_spacing_m = 0.0035f;
   SegmentFilter filter;
-  double max_iou = 0.7;
-  float symmetry_beta = 0.2f;
-  float smoothness_radius_m = 0.01f;
-  int smoothness_bins = 8;
+  double max_iou = 0.7;               ///< the paper's non-maximum suppression threshold
+  float symmetry_beta = 0.2f;         ///< the paper's beta (section IV-B)
+  float smoothness_radius_m = 0.01f;  ///< the paper's r
+  int smoothness_bins = 8;            ///< the paper's b
+  int recurrence_neighbours = kRecurrenceNeighbours;   ///< the paper's k = 10
+  double recurrence_window = kRecurrenceExtentWindow;  ///< the paper's 25 %
+
+  /// Throws std::invalid_argument naming the first bad field.
+  void validate() const;
 };
+
+/// The settings that change a scene's candidates and measures, as a short string: the catalog
+/// recomputes a scene seen with different settings.
+std::string settingsKey(const DiscoveryConfig& config);
+
+/// min_size and scales for `mesh` (equal to the config's without scale_with_density).
+struct EffectiveScales {
+  std::vector<float> scales;
+  std::size_t min_size = 0;
+  double median_edge_m = 0.0;
+};
+EffectiveScales effectiveScales(const MeshGraph& graph, const TriangleMesh& mesh,
+                                const DiscoveryConfig& config);
 
 struct Hypothesis {
   Segment segment;
   ShapeMeasures measures;
-  double score = 0.0;  ///< mean of the measures z-normalised over the scene's candidates
+  double score = 0.0;  ///< the objectness score it was ranked by: higher is more object-like
 };
 
+/// CPU time, milliseconds, of each of the five measures that measureSegment computes, in
+/// kMeasureNames' order (recurrence excluded).
+using MeasureCpuMs = std::array<double, 5>;
+
+/// Where a discoverObjects call spent its time, and how much it found.
 struct DiscoveryTimings {
+  /// Wall-clock time of each stage, milliseconds.
   double graph_ms = 0.0, segment_ms = 0.0, filter_ms = 0.0, measure_ms = 0.0, suppress_ms = 0.0;
+  /// CPU time of the whole process (all threads) during each stage, milliseconds.
+  double graph_cpu_ms = 0.0, segment_cpu_ms = 0.0, filter_cpu_ms = 0.0, measure_cpu_ms = 0.0,
+         suppress_cpu_ms = 0.0;
+  /// Each measure's CPU time, milliseconds: its thread time summed over the distinct candidates
+  /// (a segment that several scales produce is measured once), plus the per-scene look-up it
+  /// needs (compactness: the triangle index; smoothness: the tangent neighbours; local
+  /// convexity: the vertex-edge index).
+  MeasureCpuMs per_measure_cpu_ms{};
+  std::size_t candidate_count = 0;  ///< segments that passed the filters (hypotheses: fewer)
 };
 
-/// The five shape measures of one segment.
+/// The five shape measures of one segment. `lookups` must have been built for `mesh` and `graph`,
+/// its tangent neighbours for every vertex of `segment`, with the config's smoothness radius and
+/// bins. With `cpu_ms`, each measure's CPU time on the calling thread is added to it.
 ShapeMeasures measureSegment(const TriangleMesh& mesh, const MeshGraph& graph,
-                             const VertexEdges& by_vertex, const Segment& segment,
-                             const DiscoveryConfig& config);
+                             const SceneLookups& lookups, const Segment& segment,
+                             const DiscoveryConfig& config, MeasureCpuMs* cpu_ms = nullptr);
 
-/// Unsupervised objectness: each measure z-normalised over `all` (oriented so that higher is
-/// more object-like: symmetry and the hull distance are negated), then averaged. The paper
-/// normalises over its whole data set; until the catalog exists, over this scene's candidates.
+/// The five measures of each of one scene's candidates (in their order), as measureSegment gives
+/// them: the scene's look-ups built once, a segment that several scales produce measured once,
+/// the segments in parallel (oneTBB), largest first. With `cpu_ms`, each measure's CPU time (with
+/// the look-up it needs) is added to it.
+std::vector<ShapeMeasures> measureCandidates(const TriangleMesh& mesh, const MeshGraph& graph,
+                                             const std::vector<Segment>& candidates,
+                                             const DiscoveryConfig& config,
+                                             MeasureCpuMs* cpu_ms = nullptr);
+
+/// Unsupervised objectness over one set of candidates: each measure z-normalised over `all`
+/// (oriented so that higher is more object-like), then the varying ones averaged.
 std::vector<double> averageScores(const std::vector<ShapeMeasures>& all);
 
-/// Segments at every scale, filters, measures, scores, suppresses overlaps; the hypotheses best
-/// first. An empty result means no object candidates. Throws std::invalid_argument for a mesh
-/// that fails validate() or has no normals.
+/// One scene's candidate segments (those that pass the hard filters, from every scale, repeats
+/// included) and their measures; recurrence NaN until addRecurrence.
+struct SceneCandidates {
+  std::vector<Segment> segments;
+  std::vector<ShapeMeasures> measures;
+  DiscoveryTimings timings;
+};
+
+/// Graph, segmentation at every scale, filters and the five shape measures. Throws
+/// std::invalid_argument for a bad config or a mesh that fails validate() or has no normals.
+SceneCandidates findCandidates(const TriangleMesh& mesh, const DiscoveryConfig& config);
+
+/// Fills each candidate's recurrence against the index's segments of scenes other than
+/// `scene_id` (NaN where none is within the extent window).
+void addRecurrence(SceneCandidates& candidates, const RecurrenceIndex& index, std::int64_t scene_id,
+                   const DiscoveryConfig& config);
+
+/// Scores every candidate with `model`, suppresses overlaps (vertex IoU above `max_iou`, the
+/// better score kept) and returns the hypotheses best first.
+std::vector<Hypothesis> rankCandidates(const SceneCandidates& candidates,
+                                       const ObjectnessModel& model, double max_iou);
+
+/// One scene on its own: findCandidates, scores averaged over its own candidates, suppression.
+/// An empty result means no object candidates.
 std::vector<Hypothesis> discoverObjects(const TriangleMesh& mesh, const DiscoveryConfig& config,
                                         DiscoveryTimings* timings = nullptr);
 

@@ -1,5 +1,6 @@
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -44,10 +45,16 @@ struct SegmentFilter {
 std::optional<std::string> rejection(const Segment& segment, const SegmentFilter& filter);
 
 /// The segments of every segmentation with at least `min_size` vertices that pass the filter,
-/// in order of scale, then of label.
+/// in order of scale, then of label. The scales are gathered in parallel (oneTBB), and a segment
+/// that several scales produce is described once.
 std::vector<Segment> candidateSegments(const TriangleMesh& mesh,
                                        const std::vector<Segmentation>& segmentations,
                                        std::size_t min_size, const SegmentFilter& filter);
+
+/// For each segment, the index of the first segment with the same vertices (its own index when
+/// none comes before it). The same segment often comes out of several scales, and its measures
+/// need computing once.
+std::vector<std::size_t> firstOfEach(const std::vector<Segment>& segments);
 
 /// Intersection over union of two increasing vertex-index lists.
 double vertexIoU(const std::vector<std::int32_t>& a, const std::vector<std::int32_t>& b);

@@ -56,9 +56,51 @@ struct VertexEdges {
 };
 VertexEdges vertexEdges(const MeshGraph& graph);
 
+/// For each vertex, the triangles whose smallest vertex it is, so that each triangle is listed
+/// once (compressed rows, built once per scene).
+struct VertexTriangles {
+  /// Vertex v's triangles are triangles[offsets[v] .. offsets[v+1]).
+  std::vector<std::size_t> offsets;
+  std::vector<std::int32_t> triangles;  ///< indices into TriangleMesh::triangles
+};
+VertexTriangles vertexTriangles(const TriangleMesh& mesh);
+
+/// Smoothness' look-ups, built once per scene for the vertices it will be asked about: for each
+/// such vertex, the others among them within the radius, each with the angular bin its direction
+/// falls into in the vertex's tangent plane. These depend on the two vertices only, not on the
+/// segment, so every segment of the scene shares them.
+struct TangentNeighbours {
+  float radius_m = 0.0f;
+  int bins = 0;
+  std::vector<std::uint8_t> indexed;  ///< per scene vertex: 1 if it is one of the vertices
+  /// Vertex v's neighbours are neighbours[offsets[v] .. offsets[v+1]).
+  std::vector<std::size_t> offsets;
+  std::vector<std::int32_t> neighbours;  ///< scene vertex indices
+  std::vector<std::uint8_t> bin;         ///< per neighbour, 0 .. bins - 1
+};
+
+/// The tangent neighbours of `vertices` (increasing scene vertex indices; typically every vertex
+/// of every candidate), looked up among themselves. Parallel (oneTBB). Throws
+/// std::invalid_argument for a mesh without normals, a radius that is not positive, fewer than 2
+/// or more than 255 bins, a vertex outside the mesh, or vertices out of order.
+TangentNeighbours tangentNeighbours(const TriangleMesh& mesh,
+                                    const std::vector<std::int32_t>& vertices,
+                                    float radius_m = 0.01f, int bins = 8);
+
+/// What the measures of many segments of one scene share, built once; read-only, so any number
+/// of threads may measure with it at once.
+struct SceneLookups {
+  VertexEdges edges;
+  VertexTriangles triangles;
+  TangentNeighbours neighbours;
+};
+
 /// Compactness: the area of the segment's triangles (those with all three vertices in it) over
 /// the area of its smallest enclosing sphere, 4 pi R^2. 1 for a sphere, 1 / (2 pi) for a square.
+/// The first form builds `by_vertex` itself (a pass over all the mesh's triangles).
 double compactness(const TriangleMesh& mesh, const Segment& segment);
+double compactness(const TriangleMesh& mesh, const VertexTriangles& by_vertex,
+                   const Segment& segment);
 
 /// Local convexity: the share of the segment's edges (both ends in it) that are convex (Eq. 1's
 /// predicate); 0 when it has none.
@@ -74,14 +116,18 @@ double hullDistance(const TriangleMesh& mesh, const Segment& segment);
 /// along d. The sides are summed and weighted by lambda_d / (lambda_0 + lambda_1 + lambda_2).
 /// A distance: 0 for a shape that is its own mirror image about all three planes, larger the
 /// less symmetric. (The paper writes a sum over C1; the mean makes segments of different vertex
-/// counts comparable.)
+/// counts comparable.) The reflection M is an isometry and its own inverse, so O(C, MC) =
+/// O(MC, C): the two sides are equal, and one is computed, with one kd-tree of C.
 double symmetry(const TriangleMesh& mesh, const Segment& segment, float beta = 0.2f);
 
 /// Smoothness: at each vertex, the segment's other vertices within `radius` are projected onto
 /// its tangent plane, their directions quantised into `bins` angular bins, and the entropy of that
 /// histogram taken, in units of log(bins) (so 1 = spread evenly all round, 0 = no neighbour or
-/// all in one direction); the mean over the vertices.
+/// all in one direction); the mean over the vertices. The first form builds the look-ups for this
+/// one segment; the second uses a scene's, which must include every vertex of the segment
+/// (std::invalid_argument otherwise).
 double smoothness(const TriangleMesh& mesh, const Segment& segment, float radius_m = 0.01f,
                   int bins = 8);
+double smoothness(const TangentNeighbours& neighbours, const Segment& segment);
 
 }  // namespace objscan::discovery

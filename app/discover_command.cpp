@@ -1,0 +1,217 @@
+#include "discover_command.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <system_error>
+
+#include <nlohmann/json.hpp>
+
+#include "discovery_scenes.h"
+#include "exit_codes.h"
+#include "objscan/core/atomic_file.h"
+#include "objscan/core/error.h"
+#include "objscan/core/log.h"
+#include "objscan/core/ply_io.h"
+#include "objscan/discovery/scoring.h"
+
+namespace objscan::app {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+struct Ranked {
+  std::size_t scene = 0;
+  discovery::Hypothesis hypothesis;
+};
+
+nlohmann::json vectorJson(const Eigen::Vector3f& v) { return {v.x(), v.y(), v.z()}; }
+
+nlohmann::json measuresJson(const discovery::ShapeMeasures& m) {
+  nlohmann::json j;
+  j["compactness"] = m.compactness;
+  j["symmetry"] = m.symmetry;
+  j["smoothness"] = m.smoothness;
+  j["local_convexity"] = m.local_convexity;
+  j["global_convexity"] = m.global_convexity;
+  // Unknown without another scene to compare with.
+  j["recurrence"] = std::isfinite(m.recurrence) ? nlohmann::json(m.recurrence) : nullptr;
+  return j;
+}
+
+/// The oriented box of a segment: centre, axes (unit, as rows) and the extent along each, metres.
+/// The centre is the middle of the extents, not the centroid.
+nlohmann::json boxJson(const TriangleMesh& mesh, const discovery::Segment& s) {
+  Eigen::Vector3f lo = Eigen::Vector3f::Constant(INFINITY), hi = -lo;
+  for (std::int32_t v : s.vertices) {
+    const Eigen::Vector3f p = s.axes.transpose() * (mesh.positions[v] - s.centroid);
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  const Eigen::Vector3f centre = s.centroid + s.axes * (0.5f * (lo + hi));
+  nlohmann::json j;
+  j["centre"] = vectorJson(centre);
+  j["axes"] = {vectorJson(s.axes.col(0)), vectorJson(s.axes.col(1)), vectorJson(s.axes.col(2))};
+  j["extents"] = vectorJson(hi - lo);
+  return j;
+}
+
+std::string rankFile(std::size_t rank) {
+  char name[48];
+  std::snprintf(name, sizeof name, "objects/rank_%03zu.ply", rank);
+  return name;
+}
+
+/// Writes the sub-meshes into a fresh folder next to OUT/objects and swaps it into place, so
+/// OUT/objects never mixes this run's files with an earlier run's.
+void writeObjects(const fs::path& out, const std::vector<Ranked>& ranked,
+                  const std::vector<LoadedScene>& scenes) {
+  const fs::path partial = out / "objects.partial", old = out / "objects.old";
+  std::error_code ec;
+  fs::remove_all(partial, ec);
+  fs::remove_all(old, ec);
+  if (!fs::create_directory(partial, ec) || ec) {
+    throw OutputError(partial, "cannot create a folder" + (ec ? ": " + ec.message() : ""));
+  }
+  for (std::size_t i = 0; i < ranked.size(); ++i) {
+    const TriangleMesh& mesh = scenes[ranked[i].scene].mesh;
+    writePly(out / "objects.partial" / fs::path(rankFile(i + 1)).filename(),
+             mesh.subset(ranked[i].hypothesis.segment.vertices));
+  }
+  if (fs::exists(out / "objects")) {
+    fs::rename(out / "objects", old, ec);
+    if (ec) throw OutputError(out / "objects", "cannot replace the folder: " + ec.message());
+  }
+  fs::rename(partial, out / "objects", ec);
+  if (ec)
+    throw OutputError(out / "objects", "cannot move the new folder into place: " + ec.message());
+  fs::remove_all(old, ec);
+}
+
+}  // namespace
+
+int runDiscover(const DiscoverCommandOptions& options) {
+  const auto start = Clock::now();
+  options.config.validate();
+  std::optional<discovery::ObjectnessModel> model;
+  if (!options.model.empty()) model = discovery::ObjectnessModel::load(options.model);
+  SceneSetOptions set_options;
+  set_options.config = options.config;
+  if (!options.no_catalog) set_options.catalog = options.catalog.value_or(defaultCatalogPath());
+  {
+    std::error_code ec;
+    fs::create_directories(options.out, ec);
+    if (ec || !fs::is_directory(options.out)) {
+      throw OutputError(options.out,
+                        "cannot create the output folder" +
+                            (ec ? ": " + ec.message() : std::string(" (a file is in the way)")));
+    }
+  }
+  SceneSet set = readScenes(options.meshes, set_options);
+  const discovery::ObjectnessModel scorer =
+      model ? *model
+            : discovery::ObjectnessModel::average(set.normaliser,
+                                                  discovery::varyingMeasures(set.normaliser));
+
+  std::vector<Ranked> ranked;
+  std::vector<std::size_t> per_scene(set.scenes.size(), 0);
+  for (std::size_t s = 0; s < set.scenes.size(); ++s) {
+    for (discovery::Hypothesis& h :
+         discovery::rankCandidates(set.scenes[s].candidates, scorer, options.config.max_iou)) {
+      ranked.push_back({s, std::move(h)});
+      ++per_scene[s];
+    }
+  }
+  std::stable_sort(ranked.begin(), ranked.end(), [](const Ranked& a, const Ranked& b) {
+    return a.hypothesis.score > b.hypothesis.score;
+  });
+  writeObjects(options.out, ranked, set.scenes);
+
+  nlohmann::json doc;
+  doc["scoring"] = {
+      {"kind", discovery::toString(scorer.kind())},
+      {"model", options.model.empty() ? nullptr : nlohmann::json(options.model.string())},
+      {"normalised_over", set_options.catalog ? "catalog" : "these scenes"}};
+  if (set_options.catalog) {
+    doc["catalog"] = {{"path", set_options.catalog->string()},
+                      {"scenes", set.catalog_scenes},
+                      {"segments", set.catalog_segments}};
+  }
+  nlohmann::json scenes = nlohmann::json::array();
+  for (std::size_t s = 0; s < set.scenes.size(); ++s) {
+    const LoadedScene& scene = set.scenes[s];
+    const discovery::DiscoveryTimings& t = scene.candidates.timings;
+    nlohmann::json j = {
+        {"mesh", scene.mesh_path.string()},     {"vertices", scene.mesh.positions.size()},
+        {"faces", scene.mesh.triangles.size()}, {"candidates", scene.candidates.segments.size()},
+        {"hypotheses", per_scene[s]},           {"from_catalog", scene.from_catalog}};
+    if (!scene.from_catalog) {
+      j["timings_ms"] = {{"graph", t.graph_ms},
+                         {"segmentation", t.segment_ms},
+                         {"filters", t.filter_ms},
+                         {"measures", t.measure_ms}};
+    }
+    scenes.push_back(j);
+  }
+  doc["scenes"] = scenes;
+  nlohmann::json list = nlohmann::json::array();
+  for (std::size_t i = 0; i < ranked.size(); ++i) {
+    const LoadedScene& scene = set.scenes[ranked[i].scene];
+    const discovery::Hypothesis& h = ranked[i].hypothesis;
+    list.push_back({{"rank", i + 1},
+                    {"score", h.score},
+                    {"scene", scene.mesh_path.string()},
+                    {"measures", measuresJson(h.measures)},
+                    {"box", boxJson(scene.mesh, h.segment)},
+                    {"scale", h.segment.scale},
+                    {"vertex_count", h.segment.vertices.size()},
+                    {"vertices", h.segment.vertices},
+                    {"file", rankFile(i + 1)}});
+  }
+  doc["hypotheses"] = list;
+  writeFileAtomically(options.out / "hypotheses.json", doc.dump(1) + "\n");
+
+  std::size_t candidates = 0, cached = 0;
+  for (const LoadedScene& s : set.scenes) {
+    candidates += s.candidates.segments.size();
+    cached += s.from_catalog ? 1 : 0;
+  }
+  std::printf("scenes        %zu (%zu from the catalog)\n", set.scenes.size(), cached);
+  std::printf("candidates    %zu after the filters; %zu hypotheses after suppression\n", candidates,
+              ranked.size());
+  std::printf("scored by     %s%s\n", discovery::toString(scorer.kind()),
+              options.model.empty() ? " of the z-normalised measures"
+                                    : (" (" + options.model.string() + ")").c_str());
+  if (set_options.catalog) {
+    std::printf("catalog       %s: %zu scenes, %zu segments\n", set_options.catalog->c_str(),
+                set.catalog_scenes, set.catalog_segments);
+  }
+  if (ranked.empty()) std::printf("no object candidates\n");
+  for (std::size_t i = 0; i < std::min<std::size_t>(ranked.size(), 10); ++i) {
+    const discovery::Hypothesis& h = ranked[i].hypothesis;
+    std::printf("  #%-3zu score %+.3f  %5zu vertices  %.0f x %.0f x %.0f mm%s%s\n", i + 1, h.score,
+                h.segment.vertices.size(), 1e3 * h.segment.extents[0], 1e3 * h.segment.extents[1],
+                1e3 * h.segment.extents[2], set.scenes.size() > 1 ? "  " : "",
+                set.scenes.size() > 1 ? set.scenes[ranked[i].scene].mesh_path.c_str() : "");
+  }
+  if (options.timings) {
+    for (const LoadedScene& s : set.scenes) {
+      if (s.from_catalog) {
+        std::printf("time          %s: from the catalog\n", s.mesh_path.c_str());
+        continue;
+      }
+      const discovery::DiscoveryTimings& t = s.candidates.timings;
+      std::printf(
+          "time          %s: graph %.0f ms, segmentation %.0f ms, filters %.0f ms, "
+          "measures %.0f ms\n",
+          s.mesh_path.c_str(), t.graph_ms, t.segment_ms, t.filter_ms, t.measure_ms);
+    }
+  }
+  std::printf("written       %s (hypotheses.json, objects/) in %.1f s\n", options.out.c_str(),
+              std::chrono::duration<double>(Clock::now() - start).count());
+  return kExitSuccess;
+}
+
+}  // namespace objscan::app

@@ -1,0 +1,185 @@
+// Per-scene discovery speed: discoverObjects on one mesh, each stage's time next to the paper's
+// single-threaded table (Karpathy et al. 2013, section V: seconds per scene of ~200k vertices).
+//
+//   discovery_bench <mesh.ply> [--repeat N] [--json FILE]
+//
+// The mesh is read once (with normals: a fused scene has them); discoverObjects then runs N times
+// (default 3) and every figure is the median over the runs. Wall time is what a user waits for;
+// CPU time is summed over all threads, which is what the paper's single-threaded seconds compare
+// with. A measure's CPU time is its thread time summed over the distinct candidates, with the
+// per-scene look-up it needs (see DiscoveryTimings). Peak memory is the kernel's high-water mark
+// of the resident set above the loaded mesh (reset after loading).
+
+#include <malloc.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <functional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "bench_main.h"
+#include "objscan/core/atomic_file.h"
+#include "objscan/core/ply_io.h"
+#include "objscan/discovery/discover.h"
+
+namespace {
+
+using Json = nlohmann::json;
+using objscan::discovery::DiscoveryTimings;
+
+/// A field of /proc/self/status in bytes (VmRSS, VmHWM).
+double statusBytes(const std::string& field) {
+  std::ifstream status("/proc/self/status");
+  std::string line;
+  while (std::getline(status, line)) {
+    if (line.rfind(field + ":", 0) == 0) return 1024.0 * std::atof(line.c_str() + field.size() + 1);
+  }
+  return 0.0;
+}
+
+/// Resets the high-water mark of the resident set to the current size (Linux 4.0+); false when
+/// the kernel does not let this process do it.
+bool resetPeakMemory() {
+  std::ofstream clear("/proc/self/clear_refs");
+  clear << "5";
+  clear.flush();
+  return clear.good();
+}
+
+double median(std::vector<double> x) {
+  std::sort(x.begin(), x.end());
+  const std::size_t n = x.size();
+  return n % 2 == 1 ? x[n / 2] : 0.5 * (x[n / 2 - 1] + x[n / 2]);
+}
+
+/// One row of the table: what it is, how to read it from a run, and the paper's seconds (< 0:
+/// the paper has no such row).
+struct Row {
+  const char* name;
+  std::function<double(const DiscoveryTimings&)> wall_ms;  ///< empty: no wall time of its own
+  std::function<double(const DiscoveryTimings&)> cpu_ms;
+  const char* key;
+  double paper_s;
+  const char* paper_name;
+};
+
+std::string cell(double x, const char* format) {
+  if (x < 0.0) return "-";
+  char text[32];
+  std::snprintf(text, sizeof text, format, x);
+  return text;
+}
+
+int run(int argc, char** argv) {
+  std::string mesh_path, json_path;
+  int repeat = 3;
+  for (int i = 1; i < argc; ++i) {
+    const std::string flag = argv[i];
+    if (flag == "--repeat" && i + 1 < argc) {
+      repeat = std::max(1, std::atoi(argv[++i]));
+    } else if (flag == "--json" && i + 1 < argc) {
+      json_path = argv[++i];
+    } else if (!flag.empty() && flag[0] != '-' && mesh_path.empty()) {
+      mesh_path = flag;
+    } else {
+      throw std::invalid_argument("usage: discovery_bench <mesh.ply> [--repeat N] [--json FILE]");
+    }
+  }
+  if (mesh_path.empty()) {
+    throw std::invalid_argument("usage: discovery_bench <mesh.ply> [--repeat N] [--json FILE]");
+  }
+  const objscan::TriangleMesh mesh = objscan::readPly(mesh_path);
+  malloc_trim(0);
+  const double baseline = statusBytes("VmRSS");
+  const bool peak_measurable = resetPeakMemory();
+
+  const objscan::discovery::DiscoveryConfig config;
+  std::vector<DiscoveryTimings> runs;
+  std::size_t hypotheses = 0;
+  for (int r = 0; r < repeat; ++r) {
+    DiscoveryTimings t;
+    hypotheses = objscan::discovery::discoverObjects(mesh, config, &t).size();
+    runs.push_back(t);
+  }
+  const double peak_mb = peak_measurable ? (statusBytes("VmHWM") - baseline) / 1e6 : -1.0;
+
+  using T = DiscoveryTimings;
+  const auto measure = [](std::size_t k) {
+    return [k](const T& t) { return t.per_measure_cpu_ms[k]; };
+  };
+  const std::vector<Row> rows = {
+      {"mesh graph (edges, Eq. 1)", [](const T& t) { return t.graph_ms; },
+       [](const T& t) { return t.graph_cpu_ms; }, "graph", -1.0, ""},
+      {"segmentation, all scales", [](const T& t) { return t.segment_ms; },
+       [](const T& t) { return t.segment_cpu_ms; }, "segmentation", 1.5, "over-segmentation"},
+      {"candidates + hard filters", [](const T& t) { return t.filter_ms; },
+       [](const T& t) { return t.filter_cpu_ms; }, "filter", -1.0, ""},
+      {"  compactness", nullptr, measure(0), "compactness", 0.1, "compactness"},
+      {"  symmetry", nullptr, measure(1), "symmetry", 3.8, "symmetry"},
+      {"  smoothness", nullptr, measure(2), "smoothness", 2.5, "smoothness"},
+      {"  local convexity", nullptr, measure(3), "local_convexity", 1.3, "local convexity"},
+      {"  global convexity", nullptr, measure(4), "global_convexity", 13.3, "global convexity"},
+      {"measures + scores", [](const T& t) { return t.measure_ms; },
+       [](const T& t) { return t.measure_cpu_ms; }, "measures", -1.0, ""},
+      {"suppression", [](const T& t) { return t.suppress_ms; },
+       [](const T& t) { return t.suppress_cpu_ms; }, "suppression", -1.0, ""},
+      {"recurrence (needs the catalog)", nullptr, nullptr, "recurrence", 0.1, "recurrence"},
+      {"total",
+       [](const T& t) {
+         return t.graph_ms + t.segment_ms + t.filter_ms + t.measure_ms + t.suppress_ms;
+       },
+       [](const T& t) {
+         return t.graph_cpu_ms + t.segment_cpu_ms + t.filter_cpu_ms + t.measure_cpu_ms +
+                t.suppress_cpu_ms;
+       },
+       "total", 25.0, "total"},
+  };
+
+  std::printf("discovery: %s, %zu vertices, %zu triangles, %d run(s), medians\n", mesh_path.c_str(),
+              mesh.positions.size(), mesh.triangles.size(), repeat);
+  std::printf("  %zu candidates, %zu hypotheses; peak memory above the mesh %s MB\n",
+              runs.back().candidate_count, hypotheses, cell(peak_mb, "%.0f").c_str());
+  std::printf("  %-32s %10s %10s %12s   %s\n", "stage", "wall ms", "CPU ms", "paper s", "");
+  Json stages = Json::object();
+  for (const Row& row : rows) {
+    const auto over = [&](const std::function<double(const T&)>& f) {
+      if (!f) return -1.0;
+      std::vector<double> x;
+      for (const T& t : runs) x.push_back(f(t));
+      return median(x);
+    };
+    const double wall = over(row.wall_ms), cpu = over(row.cpu_ms);
+    std::printf("  %-32s %10s %10s %12s   %s\n", row.name, cell(wall, "%.0f").c_str(),
+                cell(cpu, "%.0f").c_str(), cell(row.paper_s, "%.1f").c_str(), row.paper_name);
+    stages[row.key] = {{"wall_ms", wall >= 0.0 ? Json(wall) : Json()},
+                       {"cpu_ms", cpu >= 0.0 ? Json(cpu) : Json()},
+                       {"paper_s", row.paper_s >= 0.0 ? Json(row.paper_s) : Json()}};
+  }
+  std::printf(
+      "  (paper: single-threaded seconds for a ~200k-vertex scene; CPU ms is the comparable "
+      "figure)\n");
+  if (!json_path.empty()) {
+    const Json j = {{"mesh", mesh_path},
+                    {"vertices", mesh.positions.size()},
+                    {"triangles", mesh.triangles.size()},
+                    {"repeat", repeat},
+                    {"candidates", runs.back().candidate_count},
+                    {"hypotheses", hypotheses},
+                    {"peak_mb_above_mesh", peak_mb >= 0.0 ? Json(peak_mb) : Json()},
+                    {"stages", stages}};
+    objscan::writeFileAtomically(json_path, j.dump(2) + "\n");
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  return objscan::bench::guardedMain("discovery_bench", run, argc, argv);
+}

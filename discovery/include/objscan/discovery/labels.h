@@ -1,0 +1,52 @@
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "objscan/core/triangle_mesh.h"
+
+/// Ground-truth labels for discovery's segments (issue 6, "Labels and evaluation"): object ids
+/// moved from a synthetic scene's exact mesh onto the fused mesh, and each segment matched to the
+/// ground-truth object it overlaps most.
+namespace objscan::discovery {
+
+/// The object id of each vertex of `mesh`: that of the nearest surface of `truth` (whose
+/// TriangleMesh::labels hold per-vertex ids, 0 = not an object) when it lies within
+/// `max_distance_m`, else 0. Throws std::invalid_argument when `truth` has no labels or no
+/// triangles. Runs in parallel.
+std::vector<std::int32_t> transferLabels(const TriangleMesh& mesh, const TriangleMesh& truth,
+                                         float max_distance_m = 0.01f);
+
+struct ObjectMatch {
+  std::int32_t object_id = 0;  ///< 0 when the segment touches no object vertex
+  double iou = 0.0;            ///< vertex-set intersection over union with that object
+};
+
+/// The ground-truth objects of one scene mesh, as sets of its vertices.
+class GroundTruthObjects {
+ public:
+  /// `vertex_labels`: an object id per vertex of the scene mesh (0 = none), e.g. from
+  /// transferLabels or a mesh's own `object_id` property. Negative ids are invalid.
+  explicit GroundTruthObjects(std::vector<std::int32_t> vertex_labels);
+
+  /// The object whose vertex set has the highest IoU with `vertices` (increasing indices).
+  ObjectMatch bestMatch(const std::vector<std::int32_t>& vertices) const;
+
+  /// The ids of the objects with at least one vertex, increasing.
+  std::vector<std::int32_t> objectIds() const;
+  /// How many vertices carry `id` (0 for an unknown id).
+  std::size_t objectSize(std::int32_t id) const;
+  const std::vector<std::int32_t>& vertexLabels() const { return labels_; }
+
+ private:
+  std::vector<std::int32_t> labels_;
+  std::vector<std::size_t> sizes_;  ///< by id
+};
+
+/// The paper's label (section IV-C): a segment is an object when its IoU with one ground-truth
+/// object reaches `min_iou` (0.7 by default; evaluation also reports 0.5 and 0.8).
+inline bool isObject(const ObjectMatch& match, double min_iou = 0.7) {
+  return match.object_id != 0 && match.iou >= min_iou;
+}
+
+}  // namespace objscan::discovery

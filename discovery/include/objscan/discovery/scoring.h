@@ -1,0 +1,106 @@
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "objscan/discovery/shape_measures.h"
+
+/// Objectness scores from the six measures (section IV-C): the unsupervised average of the
+/// z-normalised measures, or a classifier trained on labelled segments.
+namespace objscan::discovery {
+
+using MeasureRow = std::array<double, kMeasureCount>;
+/// Which measures take part (all of them, or all but one for the ablation).
+using MeasureMask = std::array<bool, kMeasureCount>;
+inline constexpr MeasureMask kAllMeasures = {true, true, true, true, true, true};
+
+/// Per-measure mean and standard deviation of the oriented measures (orientedMeasures()), so
+/// that each becomes zero mean and unit variance, higher meaning more object-like.
+struct MeasureNormaliser {
+  MeasureRow mean{};
+  MeasureRow sd{};  ///< 0 for a measure that does not vary (or is never known): it then counts 0
+
+  /// Fits over `rows`; a NaN value (recurrence with no other scene) is left out of its column.
+  static MeasureNormaliser fit(const std::vector<ShapeMeasures>& rows);
+  /// The z-normalised oriented row. A NaN measure, or one whose sd is 0, becomes 0: the mean,
+  /// saying nothing either way.
+  MeasureRow normalise(const ShapeMeasures& m) const;
+};
+
+/// The measures whose spread is not 0: those that tell segments apart.
+MeasureMask varyingMeasures(const MeasureNormaliser& normaliser);
+
+enum class ScoreKind {
+  kAverage,           ///< mean of the normalised measures; unsupervised, the default
+  kNaiveBayes,        ///< Gaussian naive Bayes: log posterior odds
+  kLinearSvm,         ///< OpenCV ml SVM, linear kernel: decision value
+  kRbfSvm,            ///< OpenCV ml SVM, RBF kernel: decision value
+  kNearestNeighbour,  ///< OpenCV ml KNearest: share of object labels among the k nearest
+};
+inline constexpr std::array<ScoreKind, 5> kAllScoreKinds = {
+    ScoreKind::kAverage, ScoreKind::kNaiveBayes, ScoreKind::kLinearSvm, ScoreKind::kRbfSvm,
+    ScoreKind::kNearestNeighbour};
+/// "average", "naive_bayes", "linear_svm", "rbf_svm", "nearest_neighbour".
+const char* toString(ScoreKind kind);
+/// Throws std::invalid_argument listing the names for any other.
+ScoreKind scoreKindFromString(const std::string& name);
+
+struct TrainConfig {
+  int folds = 5;           ///< the paper's 5-fold cross-validation for the grid search
+  std::uint64_t seed = 1;  ///< folds are drawn with it: same data and seed, same model
+  void validate() const;
+};
+
+/// A way to score segments: a normaliser, the measures that take part, and for a supervised kind
+/// the trained model. Immutable once made; copies share the model; scoring is thread-safe.
+class ObjectnessModel {
+ public:
+  /// The unsupervised average (no training).
+  static ObjectnessModel average(const MeasureNormaliser& normaliser,
+                                 const MeasureMask& mask = kAllMeasures);
+
+  /// Fits `kind` to rows already normalised by `normaliser` (labels 1 = object, 0 = not),
+  /// choosing its parameters by grid search scored with the mean average precision over
+  /// config.folds stratified folds. Throws std::invalid_argument when the rows and labels differ
+  /// in length, or either class has fewer than config.folds rows.
+  static ObjectnessModel train(ScoreKind kind, const MeasureNormaliser& normaliser,
+                               const std::vector<MeasureRow>& normalised_rows,
+                               const std::vector<int>& labels,
+                               const MeasureMask& mask = kAllMeasures,
+                               const TrainConfig& config = {});
+
+  /// Higher is more object-like. Scores of one model are comparable with each other only.
+  double score(const ShapeMeasures& m) const { return scoreNormalised(normaliser().normalise(m)); }
+  double scoreNormalised(const MeasureRow& z) const;
+
+  ScoreKind kind() const;
+  const MeasureNormaliser& normaliser() const;
+  const MeasureMask& mask() const;
+  /// The chosen parameters, e.g. "C=10 gamma=0.2"; "" for the average.
+  std::string parameters() const;
+  /// The grid search's best mean cross-validated AP; NaN for the average.
+  double crossValidatedAp() const;
+
+  /// Writes an OpenCV FileStorage YAML file (atomically). Throws OutputError.
+  void save(const std::filesystem::path& path) const;
+  /// Throws InputError naming the file when it is missing, not YAML/XML, not an objscan model, or
+  /// from a newer objscan.
+  static ObjectnessModel load(const std::filesystem::path& path);
+
+  struct Impl;
+
+ private:
+  explicit ObjectnessModel(std::shared_ptr<const Impl> impl) : impl_(std::move(impl)) {}
+  std::shared_ptr<const Impl> impl_;
+};
+
+/// Average precision of `scores` against `labels` (1 = positive): the mean, over the positives,
+/// of the precision at each one's rank. Ties are broken against the positives, so a tie never
+/// flatters a ranking. NaN when there is no positive.
+double averagePrecision(const std::vector<double>& scores, const std::vector<int>& labels);
+
+}  // namespace objscan::discovery

@@ -1,0 +1,586 @@
+#include "objscan/discovery/catalog.h"
+
+#include <sqlite3.h>
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <limits>
+#include <stdexcept>
+#include <string_view>
+#include <tuple>
+
+#include "objscan/core/error.h"
+
+namespace objscan::discovery {
+namespace {
+
+namespace fs = std::filesystem;
+
+// The schema, version 1 (PRAGMA user_version). Vertex lists live in their own table so that the
+// segments table stays a few dozen bytes a row: SQLite keeps up to a page of a row's BLOB inline,
+// and recurrenceEntries() scans every segment. AUTOINCREMENT: ids are never reused, so an id kept
+// elsewhere (a label file) cannot come to name another segment after a scene is replaced.
+// The CHECKs are the catalog's validation: a violation rolls the whole addScene() back.
+constexpr const char* kSchema = R"sql(
+CREATE TABLE scenes (
+  id INTEGER PRIMARY KEY AUTOINCREMENT,
+  name TEXT NOT NULL,
+  content_hash TEXT NOT NULL,
+  settings TEXT NOT NULL,
+  vertex_count INTEGER NOT NULL CHECK (vertex_count >= 0),
+  added TEXT NOT NULL DEFAULT (strftime('%Y-%m-%dT%H:%M:%SZ', 'now')),
+  UNIQUE (content_hash, settings));
+CREATE TABLE segments (
+  id INTEGER PRIMARY KEY AUTOINCREMENT,
+  scene_id INTEGER NOT NULL REFERENCES scenes(id) ON DELETE CASCADE,
+  scale REAL CHECK (scale >= 0),
+  centroid_x REAL, centroid_y REAL, centroid_z REAL,
+  axes BLOB NOT NULL CHECK (length(axes) = 36),
+  eigenvalue_0 REAL, eigenvalue_1 REAL, eigenvalue_2 REAL,
+  extent_0 REAL CHECK (extent_0 >= 0),
+  extent_1 REAL CHECK (extent_1 >= 0),
+  extent_2 REAL CHECK (extent_2 >= 0),
+  compactness REAL, symmetry REAL, smoothness REAL, local_convexity REAL, global_convexity REAL,
+  label INTEGER CHECK (label IN (0, 1)));
+CREATE INDEX segments_by_scene ON segments(scene_id);
+CREATE TABLE segment_vertices (
+  segment_id INTEGER PRIMARY KEY REFERENCES segments(id) ON DELETE CASCADE,
+  vertices BLOB NOT NULL);
+PRAGMA user_version = 1;
+)sql";
+constexpr std::array<const char*, 3> kTables = {"scenes", "segments", "segment_vertices"};
+
+// Column lists shared by the statements that read segments (their order is readSegment()'s).
+constexpr const char* kSegmentColumns =
+    "s.id, s.scene_id, s.scale, s.centroid_x, s.centroid_y, s.centroid_z, s.axes, "
+    "s.eigenvalue_0, s.eigenvalue_1, s.eigenvalue_2, s.extent_0, s.extent_1, s.extent_2, "
+    "s.compactness, s.symmetry, s.smoothness, s.local_convexity, s.global_convexity, s.label";
+
+enum class Access { kRead, kWrite };
+
+/// The open database and its file name, for error messages.
+struct Connection {
+  sqlite3* db = nullptr;
+  fs::path path;
+
+  /// Throws the exception that fits SQLite's result code `rc` from `doing`.
+  [[noreturn]] void fail(int rc, const std::string& doing, Access access) const {
+    const std::string message = db != nullptr ? sqlite3_errmsg(db) : sqlite3_errstr(rc);
+    switch (rc & 0xff) {
+      case SQLITE_NOTADB:
+      case SQLITE_CORRUPT:
+        throw InputError(path, "not an SQLite database, or a damaged one (" + message + ")");
+      case SQLITE_CONSTRAINT:
+        throw std::invalid_argument(path.string() + ": " + doing + ": refused (" + message + ")");
+      case SQLITE_BUSY:
+      case SQLITE_LOCKED:
+        throw OutputError(
+            path, doing + ": the catalog stayed locked by another process (" + message + ")");
+      default:
+        if (access == Access::kWrite) throw OutputError(path, doing + " failed (" + message + ")");
+        throw InputError(path, doing + " failed (" + message + ")");
+    }
+  }
+};
+
+/// A prepared statement, finalized on destruction. Bind parameters are numbered from 1, columns
+/// from 0, as in SQLite.
+class Statement {
+ public:
+  /// With `checks_schema`, a query that names a table or column the file lacks means the file is
+  /// not a catalog of this schema.
+  Statement(const Connection& connection, const std::string& sql, Access access,
+            bool checks_schema = false)
+      : connection_(&connection), access_(access) {
+    const int rc = sqlite3_prepare_v3(connection.db, sql.c_str(), static_cast<int>(sql.size()),
+                                      SQLITE_PREPARE_PERSISTENT, &statement_, nullptr);
+    if (rc == SQLITE_OK) return;
+    sqlite3_finalize(statement_);  // the destructor does not run when the constructor throws
+    if (checks_schema && (rc & 0xff) == SQLITE_ERROR) {
+      throw InputError(connection.path, "not an objscan catalog of schema version 1 (" +
+                                            std::string(sqlite3_errmsg(connection.db)) + ")");
+    }
+    connection.fail(rc, "preparing a query", access);
+  }
+  ~Statement() { sqlite3_finalize(statement_); }
+  Statement(const Statement&) = delete;
+  Statement& operator=(const Statement&) = delete;
+
+  /// Starts a use of the statement: clears the last one's bindings and state.
+  Statement& start() {
+    sqlite3_reset(statement_);
+    sqlite3_clear_bindings(statement_);
+    return *this;
+  }
+  /// Ends a use (releases the read lock a SELECT holds until reset).
+  void finish() { sqlite3_reset(statement_); }
+
+  Statement& bind(int i, std::int64_t v) { return check(sqlite3_bind_int64(statement_, i, v)); }
+  /// NaN is stored as NULL (SQLite's own choice) and reads back as NaN.
+  Statement& bind(int i, double v) { return check(sqlite3_bind_double(statement_, i, v)); }
+  Statement& bind(int i, const std::string& v) {
+    return check(
+        sqlite3_bind_text(statement_, i, v.data(), static_cast<int>(v.size()), SQLITE_TRANSIENT));
+  }
+  Statement& bindBlob(int i, const std::string& bytes) {
+    return check(sqlite3_bind_blob(statement_, i, bytes.data(), static_cast<int>(bytes.size()),
+                                   SQLITE_TRANSIENT));
+  }
+  Statement& bindNull(int i) { return check(sqlite3_bind_null(statement_, i)); }
+
+  /// Runs to the next row: true for a row, false when done.
+  bool step(const std::string& doing) {
+    const int rc = sqlite3_step(statement_);
+    if (rc == SQLITE_ROW) return true;
+    if (rc == SQLITE_DONE) return false;
+    sqlite3_reset(statement_);
+    connection_->fail(rc, doing, access_);
+  }
+
+  bool isNull(int c) const { return sqlite3_column_type(statement_, c) == SQLITE_NULL; }
+  std::int64_t integer(int c) const { return sqlite3_column_int64(statement_, c); }
+  /// A REAL column; NULL (a stored NaN) reads as NaN.
+  double real(int c) const {
+    return isNull(c) ? std::numeric_limits<double>::quiet_NaN()
+                     : sqlite3_column_double(statement_, c);
+  }
+  std::string text(int c) const {
+    const auto* p = reinterpret_cast<const char*>(sqlite3_column_text(statement_, c));
+    return p != nullptr
+               ? std::string(p, static_cast<std::size_t>(sqlite3_column_bytes(statement_, c)))
+               : std::string();
+  }
+  std::string_view blob(int c) const {
+    const void* p = sqlite3_column_blob(statement_, c);
+    const int n = sqlite3_column_bytes(statement_, c);
+    return p != nullptr ? std::string_view(static_cast<const char*>(p), static_cast<std::size_t>(n))
+                        : std::string_view();
+  }
+
+ private:
+  Statement& check(int rc) {
+    if (rc != SQLITE_OK) connection_->fail(rc, "binding a query parameter", access_);
+    return *this;
+  }
+
+  const Connection* connection_;
+  Access access_;
+  sqlite3_stmt* statement_ = nullptr;
+};
+
+/// Runs SQL without results (schema, pragmas).
+void execute(const Connection& connection, const char* sql, const std::string& doing,
+             Access access) {
+  const int rc = sqlite3_exec(connection.db, sql, nullptr, nullptr, nullptr);
+  if (rc != SQLITE_OK) connection.fail(rc, doing, access);
+}
+
+/// BEGIN IMMEDIATE on construction (the write lock is taken up front, so the transaction cannot
+/// fail half-way for want of it), ROLLBACK on destruction unless committed.
+class Transaction {
+ public:
+  explicit Transaction(const Connection& connection) : connection_(connection) {
+    execute(connection_, "BEGIN IMMEDIATE", "starting a transaction", Access::kWrite);
+  }
+  ~Transaction() {
+    if (!committed_) sqlite3_exec(connection_.db, "ROLLBACK", nullptr, nullptr, nullptr);
+  }
+  Transaction(const Transaction&) = delete;
+  Transaction& operator=(const Transaction&) = delete;
+  void commit() {
+    execute(connection_, "COMMIT", "committing", Access::kWrite);
+    committed_ = true;
+  }
+
+ private:
+  const Connection& connection_;
+  bool committed_ = false;
+};
+
+// Little-endian encodings of the BLOB columns, whatever the host's byte order.
+void appendLittleEndian(std::uint32_t v, std::string* out) {
+  for (int b = 0; b < 4; ++b) out->push_back(static_cast<char>((v >> (8 * b)) & 0xffu));
+}
+std::uint32_t readLittleEndian(std::string_view bytes, std::size_t i) {
+  std::uint32_t v = 0;
+  for (std::size_t b = 0; b < 4; ++b) {
+    v |= static_cast<std::uint32_t>(static_cast<unsigned char>(bytes[4 * i + b])) << (8 * b);
+  }
+  return v;
+}
+
+std::string encodeAxes(const Eigen::Matrix3f& axes) {
+  std::string out;
+  out.reserve(36);
+  for (int i = 0; i < 9; ++i) appendLittleEndian(std::bit_cast<std::uint32_t>(axes(i)), &out);
+  return out;  // column-major, as Eigen stores it
+}
+
+std::string encodeVertices(const std::vector<std::int32_t>& vertices) {
+  std::string out;
+  out.reserve(4 * vertices.size());
+  for (std::int32_t v : vertices) appendLittleEndian(static_cast<std::uint32_t>(v), &out);
+  return out;
+}
+
+}  // namespace
+
+struct Catalog::Impl {
+  explicit Impl(const fs::path& file) {
+    connection.path = file;
+    std::error_code ec;
+    const fs::file_status status = fs::status(file, ec);
+    if (fs::is_directory(status)) throw InputError(file, "is a folder, not a catalog file");
+    const bool existed = fs::exists(status);
+    if (!existed) {
+      const fs::path folder = file.parent_path();
+      if (!folder.empty() && !fs::is_directory(folder)) {
+        throw OutputError(
+            file, "cannot create the catalog: the folder " + folder.string() + " does not exist");
+      }
+    }
+    const int rc = sqlite3_open_v2(file.c_str(), &connection.db,
+                                   SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, nullptr);
+    if (rc != SQLITE_OK) {
+      const std::string message =
+          connection.db != nullptr ? sqlite3_errmsg(connection.db) : sqlite3_errstr(rc);
+      sqlite3_close(connection.db);  // a handle comes back even on failure (or null: a no-op)
+      if (existed) throw InputError(file, "cannot be opened as a catalog (" + message + ")");
+      throw OutputError(file, "cannot create the catalog (" + message + ")");
+    }
+    try {
+      open();
+    } catch (...) {
+      statements.clear();
+      sqlite3_close(connection.db);
+      throw;
+    }
+  }
+
+  ~Impl() {
+    statements.clear();  // every statement finalized before the connection closes
+    sqlite3_close(connection.db);
+  }
+  Impl(const Impl&) = delete;
+  Impl& operator=(const Impl&) = delete;
+
+  void open() {
+    sqlite3_extended_result_codes(connection.db, 1);
+    sqlite3_busy_timeout(connection.db, 10'000);
+    execute(connection, "PRAGMA foreign_keys = ON", "enabling foreign keys", Access::kRead);
+    // Reading the version and the table names reads the file's header and schema page: this is
+    // where a file that is not an SQLite database, or whose schema is damaged, is found out.
+    // (PRAGMA quick_check would also read every page, which costs seconds on a large catalog;
+    // damage further in is reported as InputError by the query that meets it.)
+    auto [version, tables] = readSchema();
+    if (version == 0 && tables.empty()) {
+      Transaction transaction(connection);
+      std::tie(version, tables) = readSchema();  // another process may have created it meanwhile
+      if (version == 0 && tables.empty()) {
+        execute(connection, kSchema, "creating the catalog's tables", Access::kWrite);
+        version = kSchemaVersion;
+        tables.assign(kTables.begin(), kTables.end());
+      }
+      transaction.commit();
+    }
+    if (version > kSchemaVersion) {
+      throw InputError(connection.path, "catalog schema version " + std::to_string(version) +
+                                            " is newer than this objscan's (" +
+                                            std::to_string(kSchemaVersion) +
+                                            "); use a newer objscan");
+    }
+    for (const char* table : kTables) {
+      if (std::find(tables.begin(), tables.end(), table) == tables.end()) {
+        throw InputError(connection.path, std::string("an SQLite database but not an objscan "
+                                                      "catalog (it has no '") +
+                                              table + "' table)");
+      }
+    }
+    if (version != kSchemaVersion) {
+      throw InputError(connection.path, "not an objscan catalog (schema version " +
+                                            std::to_string(version) + ", expected " +
+                                            std::to_string(kSchemaVersion) + ")");
+    }
+    prepareStatements();
+  }
+
+  std::pair<int, std::vector<std::string>> readSchema() {
+    Statement version(connection, "PRAGMA user_version", Access::kRead);
+    version.start();
+    const int v =
+        version.step("reading the schema version") ? static_cast<int>(version.integer(0)) : 0;
+    version.finish();
+    Statement names(connection,
+                    "SELECT name FROM sqlite_schema WHERE type = 'table' AND name NOT LIKE "
+                    "'sqlite\\_%' ESCAPE '\\'",
+                    Access::kRead);
+    names.start();
+    std::vector<std::string> tables;
+    while (names.step("reading the schema")) tables.push_back(names.text(0));
+    names.finish();
+    return {v, tables};
+  }
+
+  /// Preparing every statement up front also checks that the tables have the columns they use.
+  void prepareStatements() {
+    const auto prepare = [&](const std::string& sql, Access access) {
+      statements.push_back(std::make_unique<Statement>(connection, sql, access, true));
+      return statements.back().get();
+    };
+    find_scene = prepare(
+        "SELECT id, name, content_hash, vertex_count, settings FROM scenes "
+        "WHERE content_hash = ?1 AND settings = ?2",
+        Access::kRead);
+    list_scenes =
+        prepare("SELECT id, name, content_hash, vertex_count, settings FROM scenes ORDER BY id",
+                Access::kRead);
+    delete_scene =
+        prepare("DELETE FROM scenes WHERE content_hash = ?1 AND settings = ?2", Access::kWrite);
+    insert_scene = prepare(
+        "INSERT INTO scenes (name, content_hash, settings, vertex_count) VALUES (?1, ?2, ?3, ?4)",
+        Access::kWrite);
+    insert_segment = prepare(
+        "INSERT INTO segments (scene_id, scale, centroid_x, centroid_y, centroid_z, axes, "
+        "eigenvalue_0, eigenvalue_1, eigenvalue_2, extent_0, extent_1, extent_2, compactness, "
+        "symmetry, smoothness, local_convexity, global_convexity, label) "
+        "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18)",
+        Access::kWrite);
+    insert_vertices = prepare("INSERT INTO segment_vertices (segment_id, vertices) VALUES (?1, ?2)",
+                              Access::kWrite);
+    list_segments = prepare(std::string("SELECT ") + kSegmentColumns +
+                                ", NULL FROM segments s WHERE s.scene_id = ?1 ORDER BY s.id",
+                            Access::kRead);
+    list_segments_with_vertices = prepare(
+        std::string("SELECT ") + kSegmentColumns +
+            ", v.vertices FROM segments s LEFT JOIN segment_vertices v ON v.segment_id = s.id "
+            "WHERE s.scene_id = ?1 ORDER BY s.id",
+        Access::kRead);
+    set_label =
+        prepare("UPDATE segments SET label = ?1 WHERE id = ?2 AND scene_id = ?3", Access::kWrite);
+    recurrence_entries = prepare(
+        "SELECT scene_id, extent_0, extent_1, extent_2, compactness, symmetry, smoothness, "
+        "local_convexity, global_convexity FROM segments ORDER BY id",
+        Access::kRead);
+    count_segments = prepare("SELECT count(*) FROM segments", Access::kRead);
+  }
+
+  static CatalogScene readScene(const Statement& s) {
+    CatalogScene scene;
+    scene.id = s.integer(0);
+    scene.name = s.text(1);
+    scene.content_hash = s.text(2);
+    scene.vertex_count = static_cast<std::size_t>(s.integer(3));
+    scene.settings = s.text(4);
+    return scene;
+  }
+
+  CatalogSegment readSegment(const Statement& s) const {
+    CatalogSegment segment;
+    const auto real = [&](int c) { return static_cast<float>(s.real(c)); };
+    segment.id = s.integer(0);
+    segment.scene_id = s.integer(1);
+    segment.scale = real(2);
+    segment.centroid = {real(3), real(4), real(5)};
+    const std::string_view axes = s.blob(6);
+    if (axes.size() != 36) {
+      throw InputError(connection.path, "damaged: segment " + std::to_string(segment.id) +
+                                            " has axes of " + std::to_string(axes.size()) +
+                                            " bytes, not 36");
+    }
+    for (int i = 0; i < 9; ++i) {
+      segment.axes(i) = std::bit_cast<float>(readLittleEndian(axes, static_cast<std::size_t>(i)));
+    }
+    segment.eigenvalues = {real(7), real(8), real(9)};
+    segment.extents = {real(10), real(11), real(12)};
+    segment.measures.compactness = s.real(13);
+    segment.measures.symmetry = s.real(14);
+    segment.measures.smoothness = s.real(15);
+    segment.measures.local_convexity = s.real(16);
+    segment.measures.global_convexity = s.real(17);
+    if (!s.isNull(18)) segment.label = static_cast<int>(s.integer(18));
+    const std::string_view vertices = s.blob(19);
+    if (vertices.size() % 4 != 0) {
+      throw InputError(connection.path, "damaged: segment " + std::to_string(segment.id) +
+                                            " has a vertex list of " +
+                                            std::to_string(vertices.size()) + " bytes");
+    }
+    segment.vertices.resize(vertices.size() / 4);
+    for (std::size_t i = 0; i < segment.vertices.size(); ++i) {
+      segment.vertices[i] = static_cast<std::int32_t>(readLittleEndian(vertices, i));
+    }
+    return segment;
+  }
+
+  Connection connection;
+  std::vector<std::unique_ptr<Statement>> statements;
+  Statement* find_scene = nullptr;
+  Statement* list_scenes = nullptr;
+  Statement* delete_scene = nullptr;
+  Statement* insert_scene = nullptr;
+  Statement* insert_segment = nullptr;
+  Statement* insert_vertices = nullptr;
+  Statement* list_segments = nullptr;
+  Statement* list_segments_with_vertices = nullptr;
+  Statement* set_label = nullptr;
+  Statement* recurrence_entries = nullptr;
+  Statement* count_segments = nullptr;
+};
+
+Catalog::Catalog(const fs::path& path) : impl_(std::make_unique<Impl>(path)) {}
+Catalog::~Catalog() = default;
+Catalog::Catalog(Catalog&&) noexcept = default;
+Catalog& Catalog::operator=(Catalog&&) noexcept = default;
+
+std::optional<CatalogScene> Catalog::findScene(const std::string& content_hash,
+                                               const std::string& settings) const {
+  Statement& s = impl_->find_scene->start().bind(1, content_hash).bind(2, settings);
+  std::optional<CatalogScene> found;
+  if (s.step("looking up a scene")) found = Impl::readScene(s);
+  s.finish();
+  return found;
+}
+
+std::int64_t Catalog::addScene(const CatalogScene& scene,
+                               const std::vector<CatalogSegment>& segments) {
+  const Connection& c = impl_->connection;
+  if (scene.vertex_count > static_cast<std::size_t>(std::numeric_limits<std::int64_t>::max())) {
+    throw std::invalid_argument("a scene's vertex count must fit in 63 bits");
+  }
+  Transaction transaction(c);
+  // Each statement is reset right after its step, also when the step throws (step() resets).
+  Statement& del = impl_->delete_scene->start().bind(1, scene.content_hash).bind(2, scene.settings);
+  del.step("replacing a scene");
+  del.finish();
+  Statement& ins = impl_->insert_scene->start()
+                       .bind(1, scene.name)
+                       .bind(2, scene.content_hash)
+                       .bind(3, scene.settings)
+                       .bind(4, static_cast<std::int64_t>(scene.vertex_count));
+  ins.step("adding a scene");
+  ins.finish();
+  const std::int64_t scene_id = sqlite3_last_insert_rowid(c.db);
+  for (const CatalogSegment& g : segments) {
+    Statement& s = impl_->insert_segment->start();
+    s.bind(1, scene_id).bind(2, static_cast<double>(g.scale));
+    for (int d = 0; d < 3; ++d) s.bind(3 + d, static_cast<double>(g.centroid[d]));
+    s.bindBlob(6, encodeAxes(g.axes));
+    for (int d = 0; d < 3; ++d) s.bind(7 + d, static_cast<double>(g.eigenvalues[d]));
+    for (int d = 0; d < 3; ++d) s.bind(10 + d, static_cast<double>(g.extents[d]));
+    const std::array<double, 5> m = recurrenceMeasures(g.measures);
+    for (int j = 0; j < 5; ++j) s.bind(13 + j, m[static_cast<std::size_t>(j)]);
+    if (g.label) {
+      s.bind(18, static_cast<std::int64_t>(*g.label));
+    } else {
+      s.bindNull(18);
+    }
+    s.step("adding a segment");
+    s.finish();
+    if (!g.vertices.empty()) {
+      Statement& v = impl_->insert_vertices->start()
+                         .bind(1, static_cast<std::int64_t>(sqlite3_last_insert_rowid(c.db)))
+                         .bindBlob(2, encodeVertices(g.vertices));
+      v.step("adding a segment's vertices");
+      v.finish();
+    }
+  }
+  transaction.commit();
+  return scene_id;
+}
+
+std::vector<CatalogScene> Catalog::scenes() const {
+  Statement& s = impl_->list_scenes->start();
+  std::vector<CatalogScene> out;
+  while (s.step("listing scenes")) out.push_back(Impl::readScene(s));
+  s.finish();
+  return out;
+}
+
+std::vector<CatalogSegment> Catalog::segments(std::int64_t scene_id, bool with_vertices) const {
+  Statement& s =
+      (with_vertices ? impl_->list_segments_with_vertices : impl_->list_segments)->start();
+  s.bind(1, scene_id);
+  std::vector<CatalogSegment> out;
+  try {
+    while (s.step("reading segments")) out.push_back(impl_->readSegment(s));
+  } catch (...) {
+    s.finish();
+    throw;
+  }
+  s.finish();
+  return out;
+}
+
+void Catalog::setLabels(std::int64_t scene_id,
+                        const std::vector<std::pair<std::int64_t, int>>& segment_labels) {
+  for (const auto& [segment_id, label] : segment_labels) {
+    if (label != 0 && label != 1) {
+      throw std::invalid_argument("a label is 1 (object) or 0 (not an object), not " +
+                                  std::to_string(label) + " (segment " +
+                                  std::to_string(segment_id) + ")");
+    }
+  }
+  const Connection& c = impl_->connection;
+  Transaction transaction(c);
+  for (const auto& [segment_id, label] : segment_labels) {
+    Statement& s = impl_->set_label->start()
+                       .bind(1, static_cast<std::int64_t>(label))
+                       .bind(2, segment_id)
+                       .bind(3, scene_id);
+    s.step("setting a label");
+    s.finish();
+    if (sqlite3_changes(c.db) == 0) {
+      throw std::invalid_argument(c.path.string() + ": segment " + std::to_string(segment_id) +
+                                  " is not in scene " + std::to_string(scene_id));
+    }
+  }
+  transaction.commit();
+}
+
+std::vector<RecurrenceEntry> Catalog::recurrenceEntries() const {
+  Statement& s = impl_->recurrence_entries->start();
+  std::vector<RecurrenceEntry> out;
+  while (s.step("reading segments")) {
+    RecurrenceEntry& e = out.emplace_back();
+    e.scene_id = s.integer(0);
+    for (int d = 0; d < 3; ++d) e.extents[d] = static_cast<float>(s.real(1 + d));
+    for (int j = 0; j < 5; ++j) e.measures[static_cast<std::size_t>(j)] = s.real(4 + j);
+  }
+  s.finish();
+  return out;
+}
+
+std::size_t Catalog::segmentCount() const {
+  Statement& s = impl_->count_segments->start();
+  const std::size_t n = s.step("counting segments") ? static_cast<std::size_t>(s.integer(0)) : 0;
+  s.finish();
+  return n;
+}
+
+std::string contentHash(const fs::path& file) {
+  std::error_code ec;
+  if (fs::is_directory(file, ec)) throw InputError(file, "is a folder, not a mesh file");
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw InputError(file, "cannot be opened: " + std::string(std::strerror(errno)));
+  // FNV-1a, 64 bits (Fowler, Noll, Vo): one xor and one multiply per byte.
+  std::uint64_t h = 0xcbf29ce484222325ull;
+  std::vector<char> buffer(1 << 20);
+  while (in) {
+    in.read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+    const auto n = static_cast<std::size_t>(in.gcount());
+    for (std::size_t i = 0; i < n; ++i) {
+      h = (h ^ static_cast<unsigned char>(buffer[i])) * 0x100000001b3ull;
+    }
+  }
+  if (in.bad()) throw InputError(file, "could not be read to the end");
+  static constexpr char kHex[] = "0123456789abcdef";
+  std::string out(16, '0');
+  for (int i = 15; i >= 0; --i, h >>= 4) out[static_cast<std::size_t>(i)] = kHex[h & 0xfu];
+  return out;
+}
+
+}  // namespace objscan::discovery

@@ -1,0 +1,77 @@
+#include "objscan/discovery/labels.h"
+
+#include <algorithm>
+#include <stdexcept>
+#include <unordered_map>
+
+#include <tbb/parallel_for.h>
+
+#include "objscan/core/mesh_distance.h"
+
+namespace objscan::discovery {
+
+std::vector<std::int32_t> transferLabels(const TriangleMesh& mesh, const TriangleMesh& truth,
+                                         float max_distance_m) {
+  if (!truth.hasLabels() || truth.triangles.empty()) {
+    throw std::invalid_argument(
+        "the ground-truth mesh needs triangles and a per-vertex object_id to transfer labels");
+  }
+  const MeshDistance distance(truth, max_distance_m);
+  std::vector<std::int32_t> labels(mesh.positions.size(), 0);
+  tbb::parallel_for(std::size_t{0}, mesh.positions.size(), [&](std::size_t v) {
+    const MeshDistance::Closest c = distance.closest(mesh.positions[v]);
+    if (c.triangle < 0 || !(c.distance_m <= max_distance_m)) return;
+    // Objects are separate surfaces in the ground truth, so a triangle's three vertices share an
+    // id; take the vertex nearest the closest point in case a producer mixed them.
+    const Eigen::Vector3i& t = truth.triangles[static_cast<std::size_t>(c.triangle)];
+    int best = t[0];
+    for (int k = 1; k < 3; ++k) {
+      if ((truth.positions[t[k]] - c.point).squaredNorm() <
+          (truth.positions[best] - c.point).squaredNorm()) {
+        best = t[k];
+      }
+    }
+    labels[v] = truth.labels[static_cast<std::size_t>(best)];
+  });
+  return labels;
+}
+
+GroundTruthObjects::GroundTruthObjects(std::vector<std::int32_t> vertex_labels)
+    : labels_(std::move(vertex_labels)) {
+  for (std::int32_t id : labels_) {
+    if (id < 0) throw std::invalid_argument("object ids must not be negative");
+    if (static_cast<std::size_t>(id) >= sizes_.size()) sizes_.resize(id + 1, 0);
+    ++sizes_[id];
+  }
+}
+
+ObjectMatch GroundTruthObjects::bestMatch(const std::vector<std::int32_t>& vertices) const {
+  std::unordered_map<std::int32_t, std::size_t> overlap;
+  for (std::int32_t v : vertices) {
+    if (v < 0 || static_cast<std::size_t>(v) >= labels_.size()) {
+      throw std::invalid_argument("segment vertex " + std::to_string(v) + " is outside the mesh");
+    }
+    if (labels_[v] != 0) ++overlap[labels_[v]];
+  }
+  ObjectMatch best;
+  for (const auto& [id, shared] : overlap) {
+    const double iou =
+        static_cast<double>(shared) / static_cast<double>(vertices.size() + sizes_[id] - shared);
+    if (iou > best.iou || (iou == best.iou && id < best.object_id)) best = {id, iou};
+  }
+  return best;
+}
+
+std::vector<std::int32_t> GroundTruthObjects::objectIds() const {
+  std::vector<std::int32_t> ids;
+  for (std::size_t id = 1; id < sizes_.size(); ++id) {
+    if (sizes_[id] > 0) ids.push_back(static_cast<std::int32_t>(id));
+  }
+  return ids;
+}
+
+std::size_t GroundTruthObjects::objectSize(std::int32_t id) const {
+  return id > 0 && static_cast<std::size_t>(id) < sizes_.size() ? sizes_[id] : 0;
+}
+
+}  // namespace objscan::discovery

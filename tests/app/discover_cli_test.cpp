@@ -1,0 +1,309 @@
+// `objscan discover`, `train` and `eval` end to end on tables with mounds whose answers are
+// known; bad input gives one error line and the documented exit code.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "objscan/core/atomic_file.h"
+#include "objscan/core/ply_io.h"
+#include "test_support.h"
+
+namespace objscan {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::ProcessResult;
+using testing::TempDir;
+
+ProcessResult objscan(std::vector<std::string> args) {
+  args.insert(args.begin(), OBJSCAN_EXE);
+  return testing::runProcess(args);
+}
+
+void expectOneErrorLine(const ProcessResult& r, int code, const std::string& needle) {
+  EXPECT_EQ(r.exit_code, code) << r.err;
+  EXPECT_EQ(r.out, "");
+  std::size_t errors = 0;
+  for (const std::string& l : testing::lines(r.err)) errors += l.rfind("objscan: error: ", 0) == 0;
+  EXPECT_EQ(errors, 1u) << r.err;
+  EXPECT_NE(r.err.find(needle), std::string::npos) << r.err;
+}
+
+struct Mound {
+  float x, y, sx, sy;  ///< centre and half-widths, metres
+  std::int32_t id;     ///< the object label of its raised vertices
+  bool half_labelled;  ///< only the vertices with x below the centre carry the id
+};
+
+/// A 1.2 m table (4 mm grid) with 4 cm tall mounds, each joined to it by a concave foot; the
+/// raised vertices of each mound carry its id (all of them, or half).
+TriangleMesh table(const std::vector<Mound>& mounds) {
+  const auto height = [](const Mound& m, float x, float y) {
+    const float r =
+        std::sqrt((x - m.x) * (x - m.x) / (m.sx * m.sx) + (y - m.y) * (y - m.y) / (m.sy * m.sy));
+    const float t = std::clamp((1.0f - r) / 0.4f, 0.0f, 1.0f);
+    return 0.04f * t * t * (3.0f - 2.0f * t);
+  };
+  TriangleMesh mesh = testing::makeHeightField(301, 0.6f, [&](float x, float y) {
+    float z = 0.0f;
+    for (const Mound& m : mounds) z = std::max(z, height(m, x, y));
+    return z;
+  });
+  mesh.labels.assign(mesh.positions.size(), 0);
+  for (std::size_t v = 0; v < mesh.positions.size(); ++v) {
+    const Eigen::Vector3f& p = mesh.positions[v];
+    for (const Mound& m : mounds) {
+      if (height(m, p.x(), p.y()) > 1e-3f && (!m.half_labelled || p.x() < m.x))
+        mesh.labels[v] = m.id;
+    }
+  }
+  return mesh;
+}
+
+/// Two mounds: a round one at x = -0.15 and an elongated one at x = +0.15.
+TriangleMesh twoMounds() {
+  return table({{-0.15f, 0.0f, 0.06f, 0.06f, 1, false}, {0.15f, 0.05f, 0.06f, 0.10f, 2, false}});
+}
+
+nlohmann::json readJson(const fs::path& path) { return nlohmann::json::parse(readWholeFile(path)); }
+
+double iou(std::vector<std::int32_t> a, const TriangleMesh& mesh, std::int32_t id) {
+  std::sort(a.begin(), a.end());
+  std::size_t shared = 0, object = 0;
+  for (std::size_t v = 0; v < mesh.labels.size(); ++v) object += mesh.labels[v] == id;
+  for (std::int32_t v : a) shared += mesh.labels[v] == id;
+  return static_cast<double>(shared) / static_cast<double>(a.size() + object - shared);
+}
+
+TEST(DiscoverCli, RanksBothMoundsFirstAndWritesEachHypothesisMesh) {
+  TempDir dir;
+  const TriangleMesh mesh = twoMounds();
+  writePly(dir / "scene.ply", mesh);
+  const ProcessResult r = objscan({"discover", (dir / "scene.ply").string(), "--out",
+                                   (dir / "out").string(), "--no-catalog", "--timings"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("time          "), std::string::npos) << r.out;
+  const nlohmann::json doc = readJson(dir / "out" / "hypotheses.json");
+  const nlohmann::json& h = doc["hypotheses"];
+  ASSERT_GE(h.size(), 2u);
+  // The two best are the two mounds, one each, cut out at IoU >= 0.7.
+  const auto best = [&](std::size_t i) {
+    const auto v = h[i]["vertices"].get<std::vector<std::int32_t>>();
+    return std::max(iou(v, mesh, 1), iou(v, mesh, 2));
+  };
+  EXPECT_GE(best(0), 0.7);
+  EXPECT_GE(best(1), 0.7);
+  for (std::size_t i = 0; i < h.size(); ++i) {
+    EXPECT_EQ(h[i]["rank"], i + 1);
+    if (i > 0) {
+      EXPECT_GE(h[i - 1]["score"].get<double>(), h[i]["score"].get<double>());
+    }
+    EXPECT_EQ(h[i]["scene"], (dir / "scene.ply").string());
+    for (const char* m : {"compactness", "symmetry", "smoothness", "local_convexity",
+                          "global_convexity", "recurrence"}) {
+      EXPECT_TRUE(h[i]["measures"].contains(m)) << m;
+    }
+    // One scene and no catalog: nothing to recur with.
+    EXPECT_TRUE(h[i]["measures"]["recurrence"].is_null());
+    const auto vertices = h[i]["vertices"].get<std::vector<std::int32_t>>();
+    EXPECT_EQ(h[i]["vertex_count"], vertices.size());
+    // The sub-mesh holds exactly the hypothesis' vertices, at their places in the scene.
+    const TriangleMesh part = readPly(dir / "out" / h[i]["file"].get<std::string>());
+    ASSERT_EQ(part.positions.size(), vertices.size());
+    EXPECT_EQ(part.positions.front(), mesh.positions[vertices.front()]);
+    EXPECT_EQ(part.positions.back(), mesh.positions[vertices.back()]);
+    EXPECT_FALSE(part.triangles.empty());
+    // The box holds every vertex (1 mm for rounding).
+    const nlohmann::json& box = h[i]["box"];
+    Eigen::Vector3f c(box["centre"][0], box["centre"][1], box["centre"][2]);
+    for (std::int32_t v : vertices) {
+      for (int a = 0; a < 3; ++a) {
+        const Eigen::Vector3f axis(box["axes"][a][0], box["axes"][a][1], box["axes"][a][2]);
+        EXPECT_LE(std::abs(axis.dot(mesh.positions[v] - c)),
+                  box["extents"][a].get<float>() / 2 + 1e-3f);
+      }
+    }
+  }
+  EXPECT_EQ(testing::entryCount(dir / "out" / "objects"), h.size());
+}
+
+TEST(DiscoverCli, TheCatalogServesARepeatedSceneAndGivesRecurrence) {
+  TempDir dir;
+  writePly(dir / "a.ply", twoMounds());
+  writePly(dir / "b.ply", table({{0.1f, 0.1f, 0.07f, 0.07f, 1, false}}));
+  const std::string catalog = (dir / "catalog.sqlite").string();
+  ProcessResult r = objscan({"discover", (dir / "a.ply").string(), "--out", (dir / "one").string(),
+                             "--catalog", catalog});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("scenes        1 (0 from the catalog)"), std::string::npos) << r.out;
+  r = objscan({"discover", (dir / "a.ply").string(), (dir / "b.ply").string(), "--out",
+               (dir / "two").string(), "--catalog", catalog});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("scenes        2 (1 from the catalog)"), std::string::npos) << r.out;
+  const nlohmann::json one = readJson(dir / "one" / "hypotheses.json");
+  const nlohmann::json two = readJson(dir / "two" / "hypotheses.json");
+  EXPECT_EQ(two["catalog"]["scenes"], 2);
+  // Scene a's hypotheses are the same sets of vertices; now each mound has b's to recur with.
+  std::size_t from_a = 0, with_recurrence = 0;
+  for (const nlohmann::json& h : two["hypotheses"]) {
+    if (h["scene"] != (dir / "a.ply").string()) continue;
+    ++from_a;
+    with_recurrence += !h["measures"]["recurrence"].is_null();
+  }
+  EXPECT_EQ(from_a, one["hypotheses"].size());
+  EXPECT_GE(with_recurrence, 1u);
+}
+
+TEST(DiscoverCli, ABareTableHasNoObjectCandidates) {
+  TempDir dir;
+  writePly(dir / "bare.ply", table({}));
+  const ProcessResult r = objscan(
+      {"discover", (dir / "bare.ply").string(), "--out", (dir / "out").string(), "--no-catalog"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("no object candidates"), std::string::npos) << r.out;
+  EXPECT_TRUE(readJson(dir / "out" / "hypotheses.json")["hypotheses"].empty());
+}
+
+TEST(DiscoverCli, DuplicateAndNonManifoldFacesDoNotStopIt) {
+  TempDir dir;
+  TriangleMesh mesh = twoMounds();
+  // Every tenth face twice, and a fin: a third triangle on an edge two faces already share.
+  const std::size_t faces = mesh.triangles.size();
+  for (std::size_t f = 0; f < faces; f += 10) mesh.triangles.push_back(mesh.triangles[f]);
+  const Eigen::Vector3i t = mesh.triangles[faces / 2];
+  mesh.positions.push_back(mesh.positions[t[0]] + Eigen::Vector3f(0, 0, 0.01f));
+  mesh.normals.push_back(Eigen::Vector3f::UnitX());
+  mesh.labels.push_back(0);
+  mesh.triangles.emplace_back(t[0], t[1], static_cast<int>(mesh.positions.size() - 1));
+  writePly(dir / "messy.ply", mesh);
+  const ProcessResult r = objscan(
+      {"discover", (dir / "messy.ply").string(), "--out", (dir / "out").string(), "--no-catalog"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_GE(readJson(dir / "out" / "hypotheses.json")["hypotheses"].size(), 2u);
+}
+
+TEST(DiscoverCli, BadInputGivesOneErrorLine) {
+  TempDir dir;
+  const std::string out = (dir / "out").string();
+  testing::writeBytes(dir / "empty.ply",
+                      "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float "
+                      "y\nproperty float z\nend_header\n");
+  testing::writeBytes(dir / "cloud.ply",
+                      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float "
+                      "y\nproperty float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n");
+  testing::writeBytes(dir / "nan.ply",
+                      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float "
+                      "y\nproperty float z\nelement face 1\nproperty list uchar int "
+                      "vertex_indices\nend_header\n0 0 nan\n1 0 0\n0 1 0\n3 0 1 2\n");
+  writePly(dir / "good.ply", twoMounds());
+  testing::writeBytes(dir / "corrupt.sqlite", std::string(4096, 'x'));
+  testing::writeBytes(dir / "model.yml", "%YAML:1.0\n---\nsomething_else: 1\n");
+  expectOneErrorLine(
+      objscan({"discover", (dir / "missing.ply").string(), "--out", out, "--no-catalog"}), 2,
+      "missing.ply");
+  expectOneErrorLine(
+      objscan({"discover", (dir / "empty.ply").string(), "--out", out, "--no-catalog"}), 2,
+      "empty.ply: the mesh has no vertices");
+  expectOneErrorLine(
+      objscan({"discover", (dir / "cloud.ply").string(), "--out", out, "--no-catalog"}), 2,
+      "cloud.ply: the mesh has no faces");
+  expectOneErrorLine(
+      objscan({"discover", (dir / "nan.ply").string(), "--out", out, "--no-catalog"}), 2,
+      "nan.ply");
+  expectOneErrorLine(objscan({"discover", (dir / "good.ply").string(), "--out", out, "--catalog",
+                              (dir / "corrupt.sqlite").string()}),
+                     2, "corrupt.sqlite");
+  expectOneErrorLine(objscan({"discover", (dir / "good.ply").string(), "--out", out, "--no-catalog",
+                              "--model", (dir / "model.yml").string()}),
+                     2, "model.yml: not an objscan model");
+  // The corrupt catalog is left as it was.
+  EXPECT_EQ(readWholeFile(dir / "corrupt.sqlite"), std::string(4096, 'x'));
+}
+
+/// Labelled scenes for train and eval: round mounds labelled whole (objects) and elongated
+/// ones labelled on one half only (so their best IoU is about 0.5: not objects), sizes drawn
+/// with the seed.
+std::vector<std::string> labelledScenes(const TempDir& dir, int count) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> size(0.05f, 0.07f);
+  std::vector<std::string> paths;
+  for (int s = 0; s < count; ++s) {
+    std::vector<Mound> mounds;
+    for (int i = 0; i < 6; ++i) {
+      const float x = -0.3f + 0.3f * static_cast<float>(i % 3), y = i < 3 ? -0.2f : 0.2f;
+      const float r = size(rng);
+      mounds.push_back(i % 2 == 0 ? Mound{x, y, r, r, i + 1, false}
+                                  : Mound{x, y, r * 0.6f, r * 2.0f, i + 1, true});
+    }
+    paths.push_back((dir / ("scene" + std::to_string(s) + ".ply")).string());
+    writePly(paths.back(), table(mounds));
+  }
+  return paths;
+}
+
+TEST(EvalCli, TheProtocolSeparatesWholeObjectsFromHalvesAndWritesItsFiles) {
+  TempDir dir;
+  std::vector<std::string> args = {"eval"};
+  for (const std::string& p : labelledScenes(dir, 4)) args.push_back(p);
+  for (const char* a : {"--splits", "2", "--no-ablation", "--out"}) args.emplace_back(a);
+  args.push_back((dir / "eval").string());
+  const ProcessResult r = objscan(args);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  for (const char* f : {"ap.csv", "pr_curves.csv", "pr_curves.png", "ap_iou5.csv", "ap_iou8.csv",
+                        "segments.csv", "recall.csv", "summary.json"}) {
+    EXPECT_TRUE(fs::is_regular_file(dir / "eval" / f)) << f;
+  }
+  const nlohmann::json summary = readJson(dir / "eval" / "summary.json");
+  // Twelve round mounds are objects; the elongated ones' halves are not.
+  EXPECT_EQ(summary["label_iou_7"]["objects"], 12);
+  // Round against elongated is a compactness question: the classifiers rank all of them first.
+  EXPECT_GE(summary["label_iou_7"]["ap"]["rbf_svm"]["ap"].get<double>(), 0.9);
+  EXPECT_GE(summary["label_iou_7"]["ap"]["average"]["ap"].get<double>(), 0.5);
+  // Each round mound is some candidate at IoU >= 0.7; no candidate matches a labelled half of
+  // an elongated one that well (a whole mound reaches about 0.5 against it).
+  EXPECT_EQ(summary["object_recall"]["objects"], 24);
+  EXPECT_DOUBLE_EQ(summary["object_recall"]["candidates_iou_0.7"].get<double>(), 0.5);
+}
+
+TEST(TrainCli, AModelFromTrainScoresDiscover) {
+  TempDir dir;
+  std::vector<std::string> args = {"train"};
+  for (const std::string& p : labelledScenes(dir, 4)) args.push_back(p);
+  for (const char* a : {"--kind", "rbf_svm", "--model"}) args.emplace_back(a);
+  args.push_back((dir / "model.yml").string());
+  ProcessResult r = objscan(args);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("chosen        C="), std::string::npos) << r.out;
+  writePly(dir / "test.ply",
+           table({{-0.2f, 0.0f, 0.06f, 0.06f, 1, false}, {0.2f, 0.0f, 0.036f, 0.12f, 2, false}}));
+  r = objscan({"discover", (dir / "test.ply").string(), "--out", (dir / "out").string(),
+               "--no-catalog", "--model", (dir / "model.yml").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json doc = readJson(dir / "out" / "hypotheses.json");
+  EXPECT_EQ(doc["scoring"]["kind"], "rbf_svm");
+  // Trained to prefer round mounds: the round one ranks first.
+  const TriangleMesh mesh = readPly(dir / "test.ply");
+  EXPECT_GE(iou(doc["hypotheses"][0]["vertices"].get<std::vector<std::int32_t>>(), mesh, 1), 0.7);
+  // Unlabelled scenes cannot train.
+  TriangleMesh unlabelled = twoMounds();
+  unlabelled.labels.clear();
+  writePly(dir / "unlabelled.ply", unlabelled);
+  expectOneErrorLine(
+      objscan({"train", (dir / "unlabelled.ply").string(), "--model", (dir / "m2.yml").string()}),
+      2, "unlabelled.ply: no labels");
+  expectOneErrorLine(objscan({"train", (dir / "test.ply").string(), "--kind", "svm", "--model",
+                              (dir / "m3.yml").string()}),
+                     2, "unknown score kind 'svm'");
+}
+
+}  // namespace
+}  // namespace objscan

@@ -1,0 +1,84 @@
+// Label transfer from a ground-truth mesh, and matching segments to ground-truth objects.
+
+#include <gtest/gtest.h>
+
+#include <stdexcept>
+#include <vector>
+
+#include "objscan/discovery/labels.h"
+#include "test_support.h"
+
+namespace objscan::discovery {
+namespace {
+
+/// A flat square of side `size` at height z, centred on (cx, cy), every vertex labelled `id`.
+TriangleMesh square(float cx, float cy, float z, float size, std::int32_t id) {
+  TriangleMesh m = testing::makeHeightField(11, size / 2, [&](float, float) { return z; });
+  for (Eigen::Vector3f& p : m.positions) p += Eigen::Vector3f(cx, cy, 0.0f);
+  m.labels.assign(m.positions.size(), id);
+  return m;
+}
+
+void append(TriangleMesh& to, const TriangleMesh& part) {
+  const auto offset = static_cast<int>(to.positions.size());
+  to.positions.insert(to.positions.end(), part.positions.begin(), part.positions.end());
+  to.normals.insert(to.normals.end(), part.normals.begin(), part.normals.end());
+  to.labels.insert(to.labels.end(), part.labels.begin(), part.labels.end());
+  for (const Eigen::Vector3i& t : part.triangles) to.triangles.push_back(t.array() + offset);
+}
+
+TEST(TransferLabels, NearestSurfaceWithinOneCentimetreGivesItsObject) {
+  // Truth: a floor (0) with two boxes' tops (ids 3 and 7) 10 cm above it.
+  TriangleMesh truth = square(0, 0, 0, 1.0f, 0);
+  append(truth, square(-0.2f, 0, 0.1f, 0.1f, 3));
+  append(truth, square(0.2f, 0, 0.1f, 0.1f, 7));
+  TriangleMesh fused;
+  fused.positions = {
+      {-0.2f, 0.01f, 0.105f},   // 5 mm above object 3's top
+      {0.21f, -0.02f, 0.092f},  // 8 mm below object 7's top
+      {0.2f, 0.0f, 0.115f},     // 15 mm above object 7: too far
+      {0.4f, 0.4f, 0.003f},     // on the floor
+      {0.0f, 0.0f, 0.05f},      // in the air, 5 cm from everything
+  };
+  EXPECT_EQ(transferLabels(fused, truth), (std::vector<std::int32_t>{3, 7, 0, 0, 0}));
+  // A wider reach picks up the 15 mm point.
+  EXPECT_EQ(transferLabels(fused, truth, 0.02f)[2], 7);
+}
+
+TEST(TransferLabels, NeedsLabelledTriangles) {
+  TriangleMesh truth = square(0, 0, 0, 1.0f, 1);
+  TriangleMesh fused = truth;
+  truth.labels.clear();
+  EXPECT_THROW(transferLabels(fused, truth), std::invalid_argument);
+}
+
+TEST(GroundTruthObjects, BestMatchIsTheObjectWithTheHighestVertexIoU) {
+  // Vertices 0-9: object 1; 10-13: object 2; 14-19: none.
+  std::vector<std::int32_t> labels(20, 0);
+  for (int v = 0; v < 10; ++v) labels[v] = 1;
+  for (int v = 10; v < 14; ++v) labels[v] = 2;
+  const GroundTruthObjects truth(labels);
+  EXPECT_EQ(truth.objectIds(), (std::vector<std::int32_t>{1, 2}));
+  EXPECT_EQ(truth.objectSize(1), 10u);
+  EXPECT_EQ(truth.objectSize(5), 0u);
+
+  // 8 of object 1 and 2 others: IoU 8 / (10 + 10 - 8) = 2/3.
+  const ObjectMatch a = truth.bestMatch({0, 1, 2, 3, 4, 5, 6, 7, 14, 15});
+  EXPECT_EQ(a.object_id, 1);
+  EXPECT_NEAR(a.iou, 8.0 / 12.0, 1e-12);
+  EXPECT_FALSE(isObject(a));
+  EXPECT_TRUE(isObject(a, 0.5));
+  // All of object 2 and one more vertex: 4 / 5.
+  const ObjectMatch b = truth.bestMatch({10, 11, 12, 13, 16});
+  EXPECT_EQ(b.object_id, 2);
+  EXPECT_NEAR(b.iou, 0.8, 1e-12);
+  EXPECT_TRUE(isObject(b));
+  EXPECT_TRUE(isObject(b, 0.8));
+  // Touching no object.
+  EXPECT_EQ(truth.bestMatch({15, 16}).object_id, 0);
+  EXPECT_THROW(truth.bestMatch({25}), std::invalid_argument);
+  EXPECT_THROW(GroundTruthObjects({0, -1}), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace objscan::discovery
