@@ -148,6 +148,8 @@ int runDiscover(const DiscoverCommandOptions& options) {
         {"faces", scene.mesh.triangles.size()}, {"candidates", scene.candidates.segments.size()},
         {"hypotheses", per_scene[s]},           {"from_catalog", scene.from_catalog}};
     if (!scene.from_catalog) {
+      j["median_edge_m"] = scene.candidates.effective.median_edge_m;
+      j["min_size"] = scene.candidates.effective.min_size;
       j["timings_ms"] = {{"graph", t.graph_ms},
                          {"segmentation", t.segment_ms},
                          {"filters", t.filter_ms},

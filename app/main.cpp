@@ -171,6 +171,14 @@ int run(int argc, char** argv) {
                        "Score with a classifier from objscan train (default: the average of the "
                        "normalised measures)");
   discover->add_flag("--timings", discover_options.timings, "Print each stage's time");
+  const auto addDiscoveryOptions = [](CLI::App* sub, objscan::discovery::DiscoveryConfig& config) {
+    sub->add_option("--min-size", config.min_size,
+                    "Smallest segment, in vertices at the paper's density (scaled with the "
+                    "mesh's; the paper's m_size)")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
+  };
+  addDiscoveryOptions(discover, discover_options.config);
 
   const auto addLabelledScenes = [](CLI::App* sub, std::vector<std::filesystem::path>& scenes,
                                     std::optional<std::filesystem::path>& catalog) {
@@ -185,6 +193,7 @@ int run(int argc, char** argv) {
       "eval", "The paper's evaluation on labelled scenes: AP, precision-recall, ablation, recall");
   addLabelledScenes(eval, eval_options.scenes, eval_options.catalog);
   eval->add_option("--out", eval_options.out, "Folder for the CSV files and plots")->required();
+  addDiscoveryOptions(eval, eval_options.config);
   eval->add_option("--splits", eval_options.splits, "Random train/test halvings")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
@@ -207,6 +216,7 @@ int run(int argc, char** argv) {
                    "A segment is an object at this IoU with a ground-truth object")
       ->check(CLI::Range(0.01, 1.0))
       ->capture_default_str();
+  addDiscoveryOptions(train, train_options.config);
   train->add_option("--seed", train_options.seed, "Seed of the cross-validation folds")
       ->capture_default_str();
 

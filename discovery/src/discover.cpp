@@ -189,7 +189,8 @@ SceneCandidates findCandidates(const TriangleMesh& mesh, const DiscoveryConfig& 
   DiscoveryTimings& t = out.timings;
   Stopwatch watch;
   const MeshGraph graph = buildMeshGraph(mesh);
-  const EffectiveScales effective = effectiveScales(graph, mesh, config);
+  out.effective = effectiveScales(graph, mesh, config);
+  const EffectiveScales& effective = out.effective;
   watch.stop(&t.graph_ms, &t.graph_cpu_ms);
 
   const std::vector<Segmentation> segmentations =

@@ -73,5 +73,24 @@ TEST(TriangleMesh, CubeTrianglesFaceOutwards) {
   }
 }
 
+TEST(TriangleMesh, SubsetKeepsTheVerticesAttributesAndInnerTriangles) {
+  // A 3 x 3 vertex grid, two triangles per cell; labels = vertex index.
+  TriangleMesh m = testing::makeHeightField(3, 1.0f, [](float, float) { return 0.0f; });
+  m.colors.assign(9, Rgb8(1, 2, 3));
+  m.labels = {0, 1, 2, 3, 4, 5, 6, 7, 8};
+  // The left two columns: vertices 0, 1, 3, 4, 6, 7 (rows of 3): the two left cells, 4 triangles.
+  const TriangleMesh s = m.subset({0, 1, 3, 4, 6, 7});
+  ASSERT_EQ(s.positions.size(), 6u);
+  EXPECT_EQ(s.positions[2], m.positions[3]);
+  EXPECT_EQ(s.normals[5], m.normals[7]);
+  EXPECT_EQ(s.labels, (std::vector<std::int32_t>{0, 1, 3, 4, 6, 7}));
+  EXPECT_EQ(s.colors.size(), 6u);
+  EXPECT_EQ(s.triangles.size(), 4u);
+  EXPECT_NO_THROW(s.validate());
+  EXPECT_NEAR(s.surfaceArea(), m.surfaceArea() / 2, 1e-6);
+  EXPECT_THROW(m.subset({3, 1}), std::invalid_argument);
+  EXPECT_THROW(m.subset({9}), std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace objscan

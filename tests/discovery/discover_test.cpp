@@ -43,7 +43,11 @@ std::vector<std::int32_t> moundVertices(const TriangleMesh& mesh, float cx) {
 TEST(Discover, FindsBothObjectsOnATableAndRanksThemFirst) {
   const TriangleMesh mesh = table(true);
   DiscoveryTimings timings;
-  const std::vector<Hypothesis> h = discoverObjects(mesh, DiscoveryConfig{}, &timings);
+  // A 4 mm grid is 2.2 times the paper's density: m_size 500 would scale to 1077 vertices, more
+  // than a mound holds (about 700).
+  DiscoveryConfig config;
+  config.min_size = 200;
+  const std::vector<Hypothesis> h = discoverObjects(mesh, config, &timings);
   ASSERT_GE(h.size(), 2u);
   const auto round = moundVertices(mesh, -0.15f), long_one = moundVertices(mesh, 0.15f);
   // The two best hypotheses are the two mounds, in either order, each cut out well.
@@ -144,6 +148,27 @@ TEST(Discover, AverageScoreZNormalisesAndOrientsTheMeasures) {
   EXPECT_DOUBLE_EQ(s[0], 1.0);
   EXPECT_DOUBLE_EQ(s[1], -1.0);
   EXPECT_TRUE(averageScores({}).empty());
+}
+
+TEST(Discover, MinSizeAndScalesFollowTheVertexDensity) {
+  // A grid at half the reference spacing holds four times the vertices per square metre: m_size
+  // and every scale (both count vertices) grow fourfold; the median edge is the grid step (two
+  // of each cell's three edges are axis-aligned).
+  DiscoveryConfig config;
+  const float step = config.reference_spacing_m / 2;
+  const TriangleMesh mesh =
+      testing::makeHeightField(101, 50 * step, [](float, float) { return 0.0f; });
+  const EffectiveScales e = effectiveScales(buildMeshGraph(mesh), mesh, config);
+  EXPECT_NEAR(e.median_edge_m, step, 1e-6);
+  EXPECT_NEAR(static_cast<double>(e.min_size), 4.0 * config.min_size, 2.0);
+  ASSERT_EQ(e.scales.size(), config.scales.size());
+  for (std::size_t i = 0; i < e.scales.size(); ++i) {
+    EXPECT_NEAR(e.scales[i], 4.0f * config.scales[i], 1e-3f * config.scales[i]);
+  }
+  config.scale_with_density = false;
+  EXPECT_EQ(effectiveScales(buildMeshGraph(mesh), mesh, config).min_size, config.min_size);
+  config.scales.clear();
+  EXPECT_THROW(config.validate(), std::invalid_argument);
 }
 
 }  // namespace

@@ -30,7 +30,7 @@ struct DiscoveryConfig {
   bool scale_with_density = true;
   /// Median edge length of a mesh at the paper's density: marching cubes on KinFu's 3 m / 512
   /// voxels (5.86 mm), measured on objscan fuse's meshes of TUM fr2/desk and the synthetic scenes.
-  float reference_spacing_m = 0.0035f;
+  float reference_spacing_m = 0.00587f;
   SegmentFilter filter;
   double max_iou = 0.7;               ///< the paper's non-maximum suppression threshold
   float symmetry_beta = 0.2f;         ///< the paper's beta (section IV-B)
@@ -107,6 +107,7 @@ struct SceneCandidates {
   std::vector<Segment> segments;
   std::vector<ShapeMeasures> measures;
   DiscoveryTimings timings;
+  EffectiveScales effective;  ///< the min_size and scales used, and the mesh's median edge
 };
 
 /// Graph, segmentation at every scale, filters and the five shape measures. Throws
