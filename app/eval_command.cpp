@@ -26,6 +26,7 @@ namespace fs = std::filesystem;
 constexpr double kLabelIous[] = {0.5, 0.7, 0.8};
 
 struct Recall {
+  std::string csv;  ///< per object: scene, id, vertices, best IoU of any candidate / hypothesis
   std::size_t objects = 0;
   std::size_t candidates_05 = 0, candidates_07 = 0;  ///< matched by any filtered candidate
   std::size_t hypotheses_05 = 0, hypotheses_07 = 0;  ///< by any candidate kept by suppression
@@ -50,6 +51,10 @@ Recall objectRecall(const SceneSet& set, const LabelledSegments& kept) {
       }
     }
     for (const auto& [id, iou] : best_candidate) {
+      std::ostringstream row;
+      row << scene.mesh_path.string() << ',' << id << ',' << truth.objectSize(id) << ',' << iou
+          << ',' << best_kept[id] << '\n';
+      r.csv += row.str();
       ++r.objects;
       r.candidates_05 += iou >= 0.5;
       r.candidates_07 += iou >= 0.7;
@@ -161,6 +166,9 @@ int runEval(const EvalCommandOptions& options) {
              << "hypotheses,0.7," << recall.hypotheses_07 << ',' << recall.objects << ','
              << share(recall.hypotheses_07, recall.objects) << '\n';
   writeFileAtomically(options.out / "recall.csv", recall_csv.str());
+  writeFileAtomically(
+      options.out / "objects.csv",
+      "scene,object_id,vertices,best_candidate_iou,best_hypothesis_iou\n" + recall.csv);
   writeFileAtomically(options.out / "summary.json", summary.dump(1) + "\n");
   std::printf(
       "\nobject recall %zu objects: any candidate %.1f %% at IoU 0.5, %.1f %% at 0.7; "
