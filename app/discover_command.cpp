@@ -15,6 +15,7 @@
 #include "objscan/core/log.h"
 #include "objscan/core/ply_io.h"
 #include "objscan/discovery/scoring.h"
+#include "output_folder.h"
 
 namespace objscan::app {
 namespace {
@@ -100,15 +101,7 @@ int runDiscover(const DiscoverCommandOptions& options) {
   SceneSetOptions set_options;
   set_options.config = options.config;
   if (!options.no_catalog) set_options.catalog = options.catalog.value_or(defaultCatalogPath());
-  {
-    std::error_code ec;
-    fs::create_directories(options.out, ec);
-    if (ec || !fs::is_directory(options.out)) {
-      throw OutputError(options.out,
-                        "cannot create the output folder" +
-                            (ec ? ": " + ec.message() : std::string(" (a file is in the way)")));
-    }
-  }
+  prepareOutputFolder(options.out);
   SceneSet set = readScenes(options.meshes, set_options);
   const discovery::ObjectnessModel scorer =
       model ? *model

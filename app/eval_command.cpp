@@ -6,7 +6,6 @@
 #include <iomanip>
 #include <map>
 #include <sstream>
-#include <system_error>
 
 #include <nlohmann/json.hpp>
 
@@ -16,6 +15,7 @@
 #include "objscan/core/error.h"
 #include "objscan/core/progress.h"
 #include "objscan/discovery/evaluation.h"
+#include "output_folder.h"
 
 namespace objscan::app {
 namespace {
@@ -86,15 +86,6 @@ std::string segmentsCsv(const SceneSet& set, const LabelledSegments& segs) {
   return csv.str();
 }
 
-void prepareFolder(const fs::path& out) {
-  std::error_code ec;
-  fs::create_directories(out, ec);
-  if (ec || !fs::is_directory(out)) {
-    throw OutputError(out, "cannot create the output folder" +
-                               (ec ? ": " + ec.message() : std::string(" (a file is in the way)")));
-  }
-}
-
 }  // namespace
 
 int runEval(const EvalCommandOptions& options) {
@@ -103,12 +94,8 @@ int runEval(const EvalCommandOptions& options) {
   eval.seed = options.seed;
   eval.ablation = options.ablation;
   eval.validate();
-  prepareFolder(options.out);
-  SceneSetOptions set_options;
-  set_options.config = options.config;
-  set_options.catalog = options.catalog;
-  set_options.labelled = true;
-  const SceneSet set = readScenes(options.scenes, set_options);
+  prepareOutputFolder(options.out);
+  const SceneSet set = readScenes(options.scenes, {options.config, options.catalog, true});
   const LabelledSegments segs = labelledSegments(set, options.config.max_iou);
   writeFileAtomically(options.out / "segments.csv", segmentsCsv(set, segs));
   const Recall recall = objectRecall(set, segs);
@@ -186,11 +173,7 @@ int runEval(const EvalCommandOptions& options) {
 
 int runTrain(const TrainCommandOptions& options) {
   const discovery::ScoreKind kind = discovery::scoreKindFromString(options.kind);
-  SceneSetOptions set_options;
-  set_options.config = options.config;
-  set_options.catalog = options.catalog;
-  set_options.labelled = true;
-  const SceneSet set = readScenes(options.scenes, set_options);
+  const SceneSet set = readScenes(options.scenes, {options.config, options.catalog, true});
   const LabelledSegments segs = labelledSegments(set, options.config.max_iou);
   const std::vector<int> labels = segs.labels(options.min_iou);
   std::vector<discovery::MeasureRow> rows;

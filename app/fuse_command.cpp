@@ -16,6 +16,7 @@
 #include "objscan/core/progress.h"
 #include "objscan/core/trajectory.h"
 #include "objscan/fusion/marching_cubes.h"
+#include "output_folder.h"
 #include "stop_signals.h"
 
 namespace objscan::app {
@@ -26,15 +27,6 @@ using Clock = std::chrono::steady_clock;
 
 /// Frame time stamps and trajectory time stamps pair up within this (the TUM tools' default).
 constexpr double kPoseMatchS = 0.02;
-
-void prepareOutputFolder(const fs::path& out) {
-  std::error_code ec;
-  fs::create_directories(out, ec);
-  if (ec || !fs::is_directory(out)) {
-    throw OutputError(out, "cannot create the output folder" +
-                               (ec ? ": " + ec.message() : std::string(" (a file is in the way)")));
-  }
-}
 
 }  // namespace
 

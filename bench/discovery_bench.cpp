@@ -39,6 +39,7 @@
 #include <nlohmann/json.hpp>
 
 #include "bench_main.h"
+#include "bench_memory.h"
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/ply_io.h"
 #include "objscan/discovery/catalog.h"
@@ -47,26 +48,9 @@
 namespace {
 
 using Json = nlohmann::json;
+using objscan::bench::resetPeakMemory;
+using objscan::bench::statusBytes;
 using objscan::discovery::DiscoveryTimings;
-
-/// A field of /proc/self/status in bytes (VmRSS, VmHWM).
-double statusBytes(const std::string& field) {
-  std::ifstream status("/proc/self/status");
-  std::string line;
-  while (std::getline(status, line)) {
-    if (line.rfind(field + ":", 0) == 0) return 1024.0 * std::atof(line.c_str() + field.size() + 1);
-  }
-  return 0.0;
-}
-
-/// Resets the high-water mark of the resident set to the current size (Linux 4.0+); false when
-/// the kernel does not let this process do it.
-bool resetPeakMemory() {
-  std::ofstream clear("/proc/self/clear_refs");
-  clear << "5";
-  clear.flush();
-  return clear.good();
-}
 
 double median(std::vector<double> x) {
   std::sort(x.begin(), x.end());

@@ -50,6 +50,7 @@
 #include <opencv2/core.hpp>
 
 #include "bench_main.h"
+#include "bench_memory.h"
 #include "fusion_peers.h"
 #include "objscan/capture/folder_source.h"
 #include "objscan/core/atomic_file.h"
@@ -66,6 +67,8 @@ using Clock = std::chrono::steady_clock;
 using Json = nlohmann::json;
 using objscan::bench::FusionBenchInput;
 using objscan::bench::FusionBenchResult;
+using objscan::bench::resetPeakMemory;
+using objscan::bench::statusBytes;
 
 constexpr double kPoseMatchS = 0.02;
 const std::vector<std::string> kSystems = {"objscan", "open3d", "opencv"};
@@ -80,25 +83,6 @@ fs::path defaultFolder() {
 }
 
 // --- memory --------------------------------------------------------------------------------
-
-/// A field of /proc/self/status in bytes (VmRSS, VmHWM).
-double statusBytes(const std::string& field) {
-  std::ifstream status("/proc/self/status");
-  std::string line;
-  while (std::getline(status, line)) {
-    if (line.rfind(field + ":", 0) == 0) return 1024.0 * std::atof(line.c_str() + field.size() + 1);
-  }
-  return 0.0;
-}
-
-/// Resets the high-water mark of the resident set to the current size (Linux 4.0+); false when
-/// the kernel does not let this process do it (then there is no peak to report).
-bool resetPeakMemory() {
-  std::ofstream clear("/proc/self/clear_refs");
-  clear << "5";
-  clear.flush();
-  return clear.good();
-}
 
 /// What a run is given on its command line (a child gets the same flags).
 struct Settings {

@@ -12,6 +12,22 @@
 
 namespace objscan::discovery {
 
+/// nanoflann's view of a vector of points (which must outlive the tree).
+struct PointCloudAdaptor {
+  const std::vector<Eigen::Vector3f>* points = nullptr;
+  std::size_t kdtree_get_point_count() const { return points->size(); }
+  float kdtree_get_pt(std::size_t i, std::size_t d) const {
+    return (*points)[i][static_cast<Eigen::Index>(d)];
+  }
+  template <class Box>
+  bool kdtree_get_bbox(Box&) const {
+    return false;
+  }
+};
+using PointTree =
+    nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, PointCloudAdaptor>,
+                                        PointCloudAdaptor, 3, std::uint32_t>;
+
 class PointIndex {
  public:
   explicit PointIndex(const std::vector<Eigen::Vector3f>& points)
@@ -35,21 +51,8 @@ class PointIndex {
   }
 
  private:
-  struct Cloud {
-    const std::vector<Eigen::Vector3f>* points;
-    std::size_t kdtree_get_point_count() const { return points->size(); }
-    float kdtree_get_pt(std::size_t i, std::size_t d) const {
-      return (*points)[i][static_cast<Eigen::Index>(d)];
-    }
-    template <class Box>
-    bool kdtree_get_bbox(Box&) const {
-      return false;
-    }
-  };
-  using Tree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, Cloud>,
-                                                   Cloud, 3, std::uint32_t>;
-  Cloud cloud_;
-  Tree tree_;
+  PointCloudAdaptor cloud_;
+  PointTree tree_;
 };
 
 }  // namespace objscan::discovery

@@ -11,6 +11,8 @@
 #include <tbb/parallel_for.h>
 #include <nanoflann.hpp>
 
+#include "point_index.h"
+
 // The look-up. The paper's window, |e_d - q_d| <= w q_d along each of the three principal
 // extents, is a box around q whose sides grow with q, so in log-extents it is a box of fixed
 // shape: log e_d in [log q_d + log(1 - w), log q_d + log(1 + w)]. A kd-tree (nanoflann, as in
@@ -52,19 +54,8 @@ void checkArguments(int k, double window) {
 }  // namespace
 
 struct RecurrenceIndex::Impl {
-  struct Cloud {
-    const std::vector<Eigen::Vector3f>* points = nullptr;
-    std::size_t kdtree_get_point_count() const { return points->size(); }
-    float kdtree_get_pt(std::size_t i, std::size_t d) const {
-      return (*points)[i][static_cast<Eigen::Index>(d)];
-    }
-    template <class Box>
-    bool kdtree_get_bbox(Box&) const {
-      return false;
-    }
-  };
-  using Tree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, Cloud>,
-                                                   Cloud, 3, std::uint32_t>;
+  using Cloud = PointCloudAdaptor;
+  using Tree = PointTree;
 
   /// A nanoflann result set that keeps, of the points the radius search reaches, those of other
   /// scenes inside the window, as a max-heap of the k smallest squared measure distances.

@@ -44,8 +44,7 @@ TEST(Cli, HelpForEveryCommandExitsZero) {
 }
 
 TEST(Cli, CommandsNotBuiltYetSaySoAndExitTwo) {
-  const std::pair<const char*, const char*> planned[] = {
-      {"render", "F"}, {"scan", "F"}};
+  const std::pair<const char*, const char*> planned[] = {{"render", "F"}, {"scan", "F"}};
   for (const auto& [cmd, step] : planned) {
     const ProcessResult r = objscan({cmd, "some.oni", "--out", "dir"});
     EXPECT_EQ(r.exit_code, 2) << cmd;

@@ -13,6 +13,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "cli_expect.h"
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/ply_io.h"
 #include "test_support.h"
@@ -21,6 +22,7 @@ namespace objscan {
 namespace {
 
 namespace fs = std::filesystem;
+using testing::expectOneErrorLine;
 using testing::ProcessResult;
 using testing::TempDir;
 
@@ -33,15 +35,6 @@ ProcessResult objscan(std::vector<std::string> args) {
   }
   args.insert(args.begin(), OBJSCAN_EXE);
   return testing::runProcess(args);
-}
-
-void expectOneErrorLine(const ProcessResult& r, int code, const std::string& needle) {
-  EXPECT_EQ(r.exit_code, code) << r.err;
-  EXPECT_EQ(r.out, "");
-  std::size_t errors = 0;
-  for (const std::string& l : testing::lines(r.err)) errors += l.rfind("objscan: error: ", 0) == 0;
-  EXPECT_EQ(errors, 1u) << r.err;
-  EXPECT_NE(r.err.find(needle), std::string::npos) << r.err;
 }
 
 struct Mound {

@@ -12,6 +12,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "cli_expect.h"
 #include "objscan/core/intrinsics.h"
 #include "objscan/core/ply_io.h"
 #include "objscan/core/trajectory.h"
@@ -21,6 +22,7 @@ namespace objscan {
 namespace {
 
 namespace fs = std::filesystem;
+using testing::expectOneErrorLine;
 using testing::ProcessResult;
 using testing::TempDir;
 
@@ -44,17 +46,6 @@ fs::path syntheticRecording(const TempDir& dir) {
                "--intrinsics", (dir / "small.json").string()});
   EXPECT_EQ(r.exit_code, 0) << r.err;
   return scene;
-}
-
-/// One line on stderr starting "objscan: error: " and holding `needle`; nothing on stdout.
-void expectOneErrorLine(const ProcessResult& r, int code, const std::string& needle) {
-  EXPECT_EQ(r.exit_code, code) << r.err;
-  EXPECT_EQ(r.out, "");
-  const std::vector<std::string> ls = testing::lines(r.err);
-  std::size_t errors = 0;
-  for (const std::string& l : ls) errors += l.rfind("objscan: error: ", 0) == 0 ? 1 : 0;
-  EXPECT_EQ(errors, 1u) << r.err;
-  EXPECT_NE(r.err.find(needle), std::string::npos) << r.err;
 }
 
 TEST(FuseCli, WritesAMeshAndATrajectoryThatReadBack) {
