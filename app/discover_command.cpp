@@ -65,29 +65,36 @@ std::string rankFile(std::size_t rank) {
   return name;
 }
 
-/// Writes the sub-meshes into a fresh folder next to OUT/objects and swaps it into place, so
-/// OUT/objects never mixes this run's files with an earlier run's.
-void writeObjects(const fs::path& out, const std::vector<Ranked>& ranked,
+/// Writes the sub-meshes into OUT/objects.partial (a fresh folder).
+void stageObjects(const fs::path& out, const std::vector<Ranked>& ranked,
                   const std::vector<LoadedScene>& scenes) {
-  const fs::path partial = out / "objects.partial", old = out / "objects.old";
+  const fs::path partial = out / "objects.partial";
   std::error_code ec;
   fs::remove_all(partial, ec);
-  fs::remove_all(old, ec);
   if (!fs::create_directory(partial, ec) || ec) {
     throw OutputError(partial, "cannot create a folder" + (ec ? ": " + ec.message() : ""));
   }
   for (std::size_t i = 0; i < ranked.size(); ++i) {
     const TriangleMesh& mesh = scenes[ranked[i].scene].mesh;
-    writePly(out / "objects.partial" / fs::path(rankFile(i + 1)).filename(),
+    writePly(partial / fs::path(rankFile(i + 1)).filename(),
              mesh.subset(ranked[i].hypothesis.segment.vertices));
   }
+}
+
+/// Replaces OUT/objects with OUT/objects.partial, so OUT/objects never mixes this run's files
+/// with an earlier run's.
+void swapObjects(const fs::path& out) {
+  const fs::path partial = out / "objects.partial", old = out / "objects.old";
+  std::error_code ec;
+  fs::remove_all(old, ec);
   if (fs::exists(out / "objects")) {
     fs::rename(out / "objects", old, ec);
     if (ec) throw OutputError(out / "objects", "cannot replace the folder: " + ec.message());
   }
   fs::rename(partial, out / "objects", ec);
-  if (ec)
+  if (ec) {
     throw OutputError(out / "objects", "cannot move the new folder into place: " + ec.message());
+  }
   fs::remove_all(old, ec);
 }
 
@@ -120,13 +127,17 @@ int runDiscover(const DiscoverCommandOptions& options) {
   std::stable_sort(ranked.begin(), ranked.end(), [](const Ranked& a, const Ranked& b) {
     return a.hypothesis.score > b.hypothesis.score;
   });
-  writeObjects(options.out, ranked, set.scenes);
+  // The sub-meshes are staged first, then the JSON that names them is written, then they are
+  // swapped in: a failure before the swap leaves the previous run's pair as it was.
+  stageObjects(options.out, ranked, set.scenes);
 
   nlohmann::json doc;
   doc["scoring"] = {
       {"kind", discovery::toString(scorer.kind())},
       {"model", options.model.empty() ? nullptr : nlohmann::json(options.model.string())},
-      {"normalised_over", set_options.catalog ? "catalog" : "these scenes"}};
+      {"normalised_over", model                 ? "the model's training segments"
+                          : set_options.catalog ? "catalog"
+                                                : "these scenes"}};
   if (set_options.catalog) {
     doc["catalog"] = {{"path", set_options.catalog->string()},
                       {"scenes", set.catalog_scenes},
@@ -167,6 +178,7 @@ int runDiscover(const DiscoverCommandOptions& options) {
   }
   doc["hypotheses"] = list;
   writeFileAtomically(options.out / "hypotheses.json", doc.dump(1) + "\n");
+  swapObjects(options.out);
 
   std::size_t candidates = 0, cached = 0;
   for (const LoadedScene& s : set.scenes) {

@@ -1,6 +1,7 @@
 #include "discovery_scenes.h"
 
 #include <cstdlib>
+#include <set>
 #include <system_error>
 
 #include "objscan/core/error.h"
@@ -124,7 +125,14 @@ SceneSet readScenes(const std::vector<fs::path>& arguments, const SceneSetOption
     scene.argument = argument;
     scene.mesh_path = meshOf(argument);
     scene.mesh = readSceneMesh(scene.mesh_path);
-    if (options.labelled) scene.vertex_labels = groundTruthLabels(argument, scene.mesh);
+    if (options.labelled) {
+      scene.vertex_labels = groundTruthLabels(argument, scene.mesh);
+      try {
+        discovery::GroundTruthObjects check(scene.vertex_labels);
+      } catch (const std::invalid_argument& e) {
+        throw InputError(argument, e.what());
+      }
+    }
     std::optional<discovery::CatalogScene> known;
     std::string hash;
     if (catalog) {
@@ -135,6 +143,18 @@ SceneSet readScenes(const std::vector<fs::path>& arguments, const SceneSetOption
       scene.from_catalog = true;
       scene.scene_id = known->id;
       for (discovery::CatalogSegment& c : catalog->segments(known->id, true)) {
+        // A damaged catalog must not index outside the mesh.
+        bool valid = !c.vertices.empty();
+        for (std::size_t i = 0; valid && i < c.vertices.size(); ++i) {
+          valid = c.vertices[i] >= 0 &&
+                  static_cast<std::size_t>(c.vertices[i]) < scene.mesh.positions.size() &&
+                  (i == 0 || c.vertices[i - 1] < c.vertices[i]);
+        }
+        if (!valid) {
+          throw InputError(*options.catalog, "segment " + std::to_string(c.id) + " of scene " +
+                                                 std::to_string(known->id) +
+                                                 " has a damaged vertex list");
+        }
         scene.candidates.measures.push_back(c.measures);
         scene.candidates.segments.push_back(fromCatalog(std::move(c)));
       }
@@ -164,7 +184,15 @@ SceneSet readScenes(const std::vector<fs::path>& arguments, const SceneSetOption
   // Recurrence against every other scene known: the whole catalog, or this run's scenes.
   std::vector<discovery::RecurrenceEntry> entries;
   if (catalog) {
-    entries = catalog->recurrenceEntries();
+    // Only scenes measured with these settings: another run of the same mesh with other
+    // settings would otherwise be its own nearest "other scene".
+    std::set<std::int64_t> comparable;
+    for (const discovery::CatalogScene& c : catalog->scenes()) {
+      if (c.settings == settings) comparable.insert(c.id);
+    }
+    for (discovery::RecurrenceEntry& e : catalog->recurrenceEntries()) {
+      if (comparable.count(e.scene_id)) entries.push_back(std::move(e));
+    }
   } else {
     for (const LoadedScene& s : scenes) {
       for (std::size_t i = 0; i < s.candidates.segments.size(); ++i) {
@@ -175,7 +203,7 @@ SceneSet readScenes(const std::vector<fs::path>& arguments, const SceneSetOption
   }
   std::vector<discovery::ShapeMeasures> pool;
   if (catalog) {
-    set.catalog_scenes = catalog->scenes().size();
+    set.catalog_scenes = catalog->scenes().size();  // all of them, whatever their settings
     set.catalog_segments = entries.size();
     for (const discovery::RecurrenceEntry& e : entries) {
       discovery::ShapeMeasures m;

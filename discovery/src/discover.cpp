@@ -144,7 +144,9 @@ void DiscoveryConfig::validate() const {
 
 std::string settingsKey(const DiscoveryConfig& c) {
   std::ostringstream s;
-  s << std::setprecision(9) << "v1 scales";
+  // Bump kMeasuresVersion whenever a measure's definition changes: the catalog then recomputes.
+  constexpr int kMeasuresVersion = 1;
+  s << std::setprecision(9) << "measures v" << kMeasuresVersion << " scales";
   for (float k : c.scales) s << ' ' << k;
   s << " min_size " << c.min_size << " density " << c.scale_with_density << ' '
     << c.reference_spacing_m << " filter " << c.filter.max_size_m << ' ' << c.filter.min_thickness_m
@@ -202,6 +204,20 @@ SceneCandidates findCandidates(const TriangleMesh& mesh, const DiscoveryConfig& 
   watch.stop(&t.filter_ms, &t.filter_cpu_ms);
 
   out.measures = measureCandidates(mesh, graph, out.segments, config, &t.per_measure_cpu_ms);
+  // A segment that several scales produce is one candidate: repeats would count twice in the
+  // normalisation, in the catalog and among a segment's most similar ones for recurrence.
+  const std::vector<std::size_t> first = firstOfEach(out.segments);
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < first.size(); ++i) {
+    if (first[i] != i) continue;
+    if (kept != i) {
+      out.segments[kept] = std::move(out.segments[i]);
+      out.measures[kept] = out.measures[i];
+    }
+    ++kept;
+  }
+  out.segments.resize(kept);
+  out.measures.resize(kept);
   watch.stop(&t.measure_ms, &t.measure_cpu_ms);
   return out;
 }

@@ -40,6 +40,9 @@ GroundTruthObjects::GroundTruthObjects(std::vector<std::int32_t> vertex_labels)
     : labels_(std::move(vertex_labels)) {
   for (std::int32_t id : labels_) {
     if (id < 0) throw std::invalid_argument("object ids must not be negative");
+    if (id > 1000000) {
+      throw std::invalid_argument("object id " + std::to_string(id) + " is implausibly large");
+    }
     if (static_cast<std::size_t>(id) >= sizes_.size()) sizes_.resize(id + 1, 0);
     ++sizes_[id];
   }

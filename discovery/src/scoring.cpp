@@ -469,6 +469,9 @@ ObjectnessModel ObjectnessModel::load(const std::filesystem::path& path) {
       if (it == kMeasureNames.end()) throw bad("unknown measure '" + name + "'");
       impl->mask[static_cast<std::size_t>(it - kMeasureNames.begin())] = true;
     }
+    if (std::find(impl->mask.begin(), impl->mask.end(), true) == impl->mask.end()) {
+      throw bad("the model uses no measure");
+    }
     std::vector<double> mean, sd;
     fs["mean"] >> mean;
     fs["sd"] >> sd;

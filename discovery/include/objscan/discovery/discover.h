@@ -78,7 +78,8 @@ struct DiscoveryTimings {
   /// needs (compactness: the triangle index; smoothness: the tangent neighbours; local
   /// convexity: the vertex-edge index).
   MeasureCpuMs per_measure_cpu_ms{};
-  std::size_t candidate_count = 0;  ///< segments that passed the filters (hypotheses: fewer)
+  /// Segments that passed the filters, repeats across scales included (distinct ones: fewer).
+  std::size_t candidate_count = 0;
 };
 
 /// The five shape measures of one segment. `lookups` must have been built for `mesh` and `graph`,
@@ -101,8 +102,9 @@ std::vector<ShapeMeasures> measureCandidates(const TriangleMesh& mesh, const Mes
 /// (oriented so that higher is more object-like), then the varying ones averaged.
 std::vector<double> averageScores(const std::vector<ShapeMeasures>& all);
 
-/// One scene's candidate segments (those that pass the hard filters, from every scale, repeats
-/// included) and their measures; recurrence NaN until addRecurrence.
+/// One scene's candidate segments (those that pass the hard filters, from every scale; a segment
+/// that several scales produce once, at the finest of them) and their measures; recurrence NaN
+/// until addRecurrence.
 struct SceneCandidates {
   std::vector<Segment> segments;
   std::vector<ShapeMeasures> measures;

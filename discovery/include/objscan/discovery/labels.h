@@ -26,7 +26,8 @@ struct ObjectMatch {
 class GroundTruthObjects {
  public:
   /// `vertex_labels`: an object id per vertex of the scene mesh (0 = none), e.g. from
-  /// transferLabels or a mesh's own `object_id` property. Negative ids are invalid.
+  /// transferLabels or a mesh's own `object_id` property. Ids must lie in 0..1,000,000
+  /// (std::invalid_argument otherwise).
   explicit GroundTruthObjects(std::vector<std::int32_t> vertex_labels);
 
   /// The object whose vertex set has the highest IoU with `vertices` (increasing indices).
