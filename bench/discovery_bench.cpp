@@ -89,7 +89,8 @@ double timeMs(const std::function<void()>& f) {
 
 struct RecurrenceTiming {
   double load_ms = -1, index_ms = -1, query_ms = -1, total_ms = -1;
-  std::size_t found = 0;  ///< candidates with at least one similar segment in the window
+  std::size_t lookups = 0;  ///< the scene's distinct candidates
+  std::size_t found = 0;    ///< candidates with at least one similar segment in the window
 };
 
 /// See the header comment.
@@ -144,6 +145,7 @@ RecurrenceTiming timeRecurrence(const objscan::discovery::SceneCandidates& scene
     r.index_ms = timeMs([&] { index.emplace(std::move(entries)); });
     r.query_ms = timeMs([&] { d::addRecurrence(query, *index, -1, config); });
   });
+  r.lookups = query.measures.size();
   for (const d::ShapeMeasures& m : query.measures) r.found += std::isfinite(m.recurrence);
   return r;
 }
@@ -241,7 +243,7 @@ int run(int argc, char** argv) {
     std::printf(
         "  recurrence: %ld catalog segments in 1000 scenes: read %.0f ms, kd-tree %.0f ms, "
         "%zu look-ups %.1f ms (%zu with similar segments); not in the total\n",
-        catalog_segments, recurrence.load_ms, recurrence.index_ms, runs.back().candidate_count,
+        catalog_segments, recurrence.load_ms, recurrence.index_ms, recurrence.lookups,
         recurrence.query_ms, recurrence.found);
   }
   std::printf(
