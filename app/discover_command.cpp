@@ -32,13 +32,12 @@ nlohmann::json vectorJson(const Eigen::Vector3f& v) { return {v.x(), v.y(), v.z(
 
 nlohmann::json measuresJson(const discovery::ShapeMeasures& m) {
   nlohmann::json j;
-  j["compactness"] = m.compactness;
-  j["symmetry"] = m.symmetry;
-  j["smoothness"] = m.smoothness;
-  j["local_convexity"] = m.local_convexity;
-  j["global_convexity"] = m.global_convexity;
-  // Unknown without another scene to compare with.
-  j["recurrence"] = std::isfinite(m.recurrence) ? nlohmann::json(m.recurrence) : nullptr;
+  const auto values = discovery::measureValues(m);
+  // null: unknown (recurrence without another scene to compare with).
+  for (std::size_t k = 0; k < values.size(); ++k) {
+    j[discovery::kMeasureNames[k]] =
+        std::isfinite(values[k]) ? nlohmann::json(values[k]) : nlohmann::json(nullptr);
+  }
   return j;
 }
 

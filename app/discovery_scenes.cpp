@@ -126,9 +126,8 @@ SceneSet readScenes(const std::vector<fs::path>& arguments, const SceneSetOption
     scene.mesh_path = meshOf(argument);
     scene.mesh = readSceneMesh(scene.mesh_path);
     if (options.labelled) {
-      scene.vertex_labels = groundTruthLabels(argument, scene.mesh);
       try {
-        discovery::GroundTruthObjects check(scene.vertex_labels);
+        scene.truth.emplace(groundTruthLabels(argument, scene.mesh));
       } catch (const std::invalid_argument& e) {
         throw InputError(argument, e.what());
       }
@@ -190,6 +189,7 @@ SceneSet readScenes(const std::vector<fs::path>& arguments, const SceneSetOption
     for (const discovery::CatalogScene& c : catalog->scenes()) {
       if (c.settings == settings) comparable.insert(c.id);
     }
+    set.catalog_scenes = comparable.size();
     for (discovery::RecurrenceEntry& e : catalog->recurrenceEntries()) {
       if (comparable.count(e.scene_id)) entries.push_back(std::move(e));
     }
@@ -203,7 +203,6 @@ SceneSet readScenes(const std::vector<fs::path>& arguments, const SceneSetOption
   }
   std::vector<discovery::ShapeMeasures> pool;
   if (catalog) {
-    set.catalog_scenes = catalog->scenes().size();  // all of them, whatever their settings
     set.catalog_segments = entries.size();
     for (const discovery::RecurrenceEntry& e : entries) {
       discovery::ShapeMeasures m;
@@ -240,7 +239,7 @@ LabelledSegments labelledSegments(const SceneSet& set, double max_iou) {
   const discovery::ObjectnessModel average = discovery::ObjectnessModel::average(
       set.normaliser, discovery::varyingMeasures(set.normaliser));
   for (std::size_t s = 0; s < set.scenes.size(); ++s) {
-    const discovery::GroundTruthObjects truth(set.scenes[s].vertex_labels);
+    const discovery::GroundTruthObjects& truth = *set.scenes[s].truth;
     for (const discovery::Hypothesis& h :
          discovery::rankCandidates(set.scenes[s].candidates, average, max_iou)) {
       out.measures.push_back(h.measures);

@@ -30,8 +30,8 @@ struct LoadedScene {
   discovery::SceneCandidates candidates;  ///< recurrence filled in by readScenes
   bool from_catalog = false;              ///< candidates and measures read, not computed
   std::int64_t scene_id = 0;              ///< in the catalog, or the scene's index without one
-  /// Ground-truth object id per mesh vertex (labelled runs only).
-  std::vector<std::int32_t> vertex_labels;
+  /// The ground-truth objects as sets of mesh vertices (labelled runs only).
+  std::optional<discovery::GroundTruthObjects> truth;
 };
 
 /// The scenes of a run and the normalisation their scores share.
@@ -41,7 +41,9 @@ struct SceneSet {
   /// catalog (the paper normalises over its whole data set), else this run's candidates.
   /// Recurrence is normalised over this run's candidates either way.
   discovery::MeasureNormaliser normaliser;
-  std::size_t catalog_scenes = 0, catalog_segments = 0;  ///< 0 without a catalog
+  /// The catalog's scenes and segments measured with this run's settings (those compared and
+  /// normalised over); 0 without a catalog.
+  std::size_t catalog_scenes = 0, catalog_segments = 0;
 };
 
 /// The default catalog: $OBJSCAN_CATALOG, else $XDG_DATA_HOME/objscan/catalog.sqlite, else

@@ -37,7 +37,7 @@ Recall objectRecall(const SceneSet& set, const LabelledSegments& kept) {
   Recall r;
   for (std::size_t s = 0; s < set.scenes.size(); ++s) {
     const LoadedScene& scene = set.scenes[s];
-    const discovery::GroundTruthObjects truth(scene.vertex_labels);
+    const discovery::GroundTruthObjects& truth = *scene.truth;
     std::map<std::int32_t, double> best_candidate, best_kept;
     for (std::int32_t id : truth.objectIds()) best_candidate[id] = best_kept[id] = 0.0;
     for (const discovery::Segment& seg : scene.candidates.segments) {
@@ -76,9 +76,7 @@ std::string segmentsCsv(const SceneSet& set, const LabelledSegments& segs) {
   for (std::size_t i = 0; i < segs.measures.size(); ++i) {
     csv << set.scenes[segs.scene[i]].mesh_path.string() << ',' << segs.matches[i].object_id << ','
         << segs.matches[i].iou;
-    const discovery::ShapeMeasures& m = segs.measures[i];
-    for (double v : {m.compactness, m.symmetry, m.smoothness, m.local_convexity, m.global_convexity,
-                     m.recurrence}) {
+    for (double v : discovery::measureValues(segs.measures[i])) {
       csv << ',';
       if (std::isfinite(v)) csv << v;
     }

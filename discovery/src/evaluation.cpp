@@ -15,6 +15,7 @@
 
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/error.h"
+#include "stratify.h"
 
 namespace objscan::discovery {
 
@@ -140,12 +141,7 @@ EvalResult evaluate(const std::vector<ShapeMeasures>& measures, const std::vecto
     // A stratified random halving: each class shuffled and cut at the training share.
     std::mt19937_64 rng(config.seed + static_cast<std::uint64_t>(s));
     std::vector<std::size_t> train, test;
-    for (int c = 0; c < 2; ++c) {
-      std::vector<std::size_t> idx;
-      for (std::size_t i = 0; i < labels.size(); ++i) {
-        if ((labels[i] == 1) == (c == 1)) idx.push_back(i);
-      }
-      std::shuffle(idx.begin(), idx.end(), rng);
+    for (const std::vector<std::size_t>& idx : shuffledByClass(labels, rng)) {
       const auto cut = static_cast<std::size_t>(std::llround(config.train_share * idx.size()));
       train.insert(train.end(), idx.begin(), idx.begin() + static_cast<std::ptrdiff_t>(cut));
       test.insert(test.end(), idx.begin() + static_cast<std::ptrdiff_t>(cut), idx.end());

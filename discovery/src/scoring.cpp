@@ -13,6 +13,7 @@
 
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/error.h"
+#include "stratify.h"
 
 namespace objscan::discovery {
 
@@ -305,12 +306,7 @@ ObjectnessModel ObjectnessModel::train(ScoreKind kind, const MeasureNormaliser& 
   // Stratified folds: each class shuffled with the seed and dealt out in turn.
   std::vector<int> fold(labels.size());
   std::mt19937_64 rng(config.seed);
-  for (int c = 0; c < 2; ++c) {
-    std::vector<std::size_t> idx;
-    for (std::size_t i = 0; i < labels.size(); ++i) {
-      if ((labels[i] == 1) == (c == 1)) idx.push_back(i);
-    }
-    std::shuffle(idx.begin(), idx.end(), rng);
+  for (const std::vector<std::size_t>& idx : shuffledByClass(labels, rng)) {
     for (std::size_t i = 0; i < idx.size(); ++i) fold[idx[i]] = static_cast<int>(i) % config.folds;
   }
 

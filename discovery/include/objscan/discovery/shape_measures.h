@@ -33,11 +33,18 @@ inline constexpr std::size_t kMeasureCount = 6;
 inline constexpr std::array<const char*, kMeasureCount> kMeasureNames = {
     "compactness", "symmetry", "smoothness", "local_convexity", "global_convexity", "recurrence"};
 
-/// The measures as a row in kMeasureNames' order, each oriented so that higher means more
-/// object-like: symmetry, the hull distance and recurrence are negated.
+/// The measures as a row in kMeasureNames' order, as the paper defines them.
+inline std::array<double, kMeasureCount> measureValues(const ShapeMeasures& m) {
+  return {m.compactness,     m.symmetry,         m.smoothness,
+          m.local_convexity, m.global_convexity, m.recurrence};
+}
+
+/// measureValues() oriented so that higher means more object-like: symmetry, the hull distance
+/// and recurrence are negated.
 inline std::array<double, kMeasureCount> orientedMeasures(const ShapeMeasures& m) {
-  return {m.compactness,     -m.symmetry,         m.smoothness,
-          m.local_convexity, -m.global_convexity, -m.recurrence};
+  std::array<double, kMeasureCount> row = measureValues(m);
+  for (std::size_t k : {1, 4, 5}) row[k] = -row[k];
+  return row;
 }
 
 struct Sphere {
