@@ -201,23 +201,19 @@ SceneCandidates findCandidates(const TriangleMesh& mesh, const DiscoveryConfig& 
 
   out.segments = candidateSegments(mesh, segmentations, effective.min_size, config.filter);
   t.candidate_count = out.segments.size();
-  watch.stop(&t.filter_ms, &t.filter_cpu_ms);
-
-  out.measures = measureCandidates(mesh, graph, out.segments, config, &t.per_measure_cpu_ms);
   // A segment that several scales produce is one candidate: repeats would count twice in the
   // normalisation, in the catalog and among a segment's most similar ones for recurrence.
   const std::vector<std::size_t> first = firstOfEach(out.segments);
   std::size_t kept = 0;
   for (std::size_t i = 0; i < first.size(); ++i) {
     if (first[i] != i) continue;
-    if (kept != i) {
-      out.segments[kept] = std::move(out.segments[i]);
-      out.measures[kept] = out.measures[i];
-    }
+    if (kept != i) out.segments[kept] = std::move(out.segments[i]);
     ++kept;
   }
   out.segments.resize(kept);
-  out.measures.resize(kept);
+  watch.stop(&t.filter_ms, &t.filter_cpu_ms);
+
+  out.measures = measureCandidates(mesh, graph, out.segments, config, &t.per_measure_cpu_ms);
   watch.stop(&t.measure_ms, &t.measure_cpu_ms);
   return out;
 }
