@@ -153,7 +153,10 @@ int runDiscover(const DiscoverCommandOptions& options) {
     if (!scene.from_catalog) {
       j["median_edge_m"] = scene.candidates.effective.median_edge_m;
       j["min_size"] = scene.candidates.effective.min_size;
+      j["support_planes"] = scene.candidates.support_planes;
+      j["support_vertices"] = scene.candidates.support_vertices;
       j["timings_ms"] = {{"graph", t.graph_ms},
+                         {"supports", t.support_ms},
                          {"segmentation", t.segment_ms},
                          {"filters", t.filter_ms},
                          {"measures", t.measure_ms}};
@@ -210,9 +213,9 @@ int runDiscover(const DiscoverCommandOptions& options) {
       }
       const discovery::DiscoveryTimings& t = s.candidates.timings;
       std::printf(
-          "time          %s: graph %.0f ms, segmentation %.0f ms, filters %.0f ms, "
-          "measures %.0f ms\n",
-          s.mesh_path.c_str(), t.graph_ms, t.segment_ms, t.filter_ms, t.measure_ms);
+          "time          %s: graph %.0f ms, supports %.0f ms, segmentation %.0f ms, "
+          "filters %.0f ms, measures %.0f ms\n",
+          s.mesh_path.c_str(), t.graph_ms, t.support_ms, t.segment_ms, t.filter_ms, t.measure_ms);
     }
   }
   std::printf("written       %s (hypotheses.json, objects/) in %.1f s\n", options.out.c_str(),

@@ -104,6 +104,7 @@ int runEval(const EvalCommandOptions& options) {
   summary["segments"] = segs.measures.size();
   summary["splits"] = eval.splits;
   summary["seed"] = eval.seed;
+  summary["segmentation"] = options.config.supports.enabled ? "support surfaces cut" : "paper";
   std::printf("scenes        %zu, %zu segments after suppression\n", set.scenes.size(),
               segs.measures.size());
   for (double iou : kLabelIous) {

@@ -177,6 +177,10 @@ int run(int argc, char** argv) {
                     "mesh's; the paper's m_size)")
         ->check(CLI::PositiveNumber)
         ->capture_default_str();
+    sub->add_flag_callback(
+        "--paper-segmentation", [&config] { config.supports.enabled = false; },
+        "Segment as the paper does, without first cutting objects from the planes they stand on "
+        "(objscan's support surfaces; see the README)");
   };
   addDiscoveryOptions(discover, discover_options.config);
 

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <ctime>
 #include <iomanip>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 
@@ -140,6 +141,7 @@ void DiscoveryConfig::validate() const {
   if (recurrence_neighbours < 1 || !(recurrence_window > 0.0)) {
     throw std::invalid_argument("recurrence needs k >= 1 and a positive extent window");
   }
+  supports.validate();
 }
 
 std::string settingsKey(const DiscoveryConfig& c) {
@@ -153,12 +155,18 @@ std::string settingsKey(const DiscoveryConfig& c) {
     << ' ' << c.filter.min_lambda1_over_lambda0 << ' ' << c.filter.min_lambda2_over_lambda0
     << " beta " << c.symmetry_beta << " smooth " << c.smoothness_radius_m << ' '
     << c.smoothness_bins;
+  // Without supports the key is what it was before they existed: catalogs keep their scenes.
+  if (c.supports.enabled) {
+    s << " supports " << c.supports.distance_m << ' ' << c.supports.max_angle_deg << ' '
+      << c.supports.min_vertices << ' ' << c.supports.max_planes << ' '
+      << c.supports.ransac_iterations;
+  }
   return s.str();
 }
 
 EffectiveScales effectiveScales(const MeshGraph& graph, const TriangleMesh& mesh,
                                 const DiscoveryConfig& config) {
-  EffectiveScales e{config.scales, config.min_size, 0.0};
+  EffectiveScales e{config.scales, config.min_size, config.supports.min_vertices, 0.0};
   if (graph.edges.empty()) return e;
   std::vector<float> lengths(graph.edges.size());
   for (std::size_t i = 0; i < lengths.size(); ++i) {
@@ -170,8 +178,12 @@ EffectiveScales effectiveScales(const MeshGraph& graph, const TriangleMesh& mesh
   if (!config.scale_with_density || !(e.median_edge_m > 0.0)) return e;
   const double density = std::pow(config.reference_spacing_m / e.median_edge_m, 2.0);
   for (float& k : e.scales) k = static_cast<float>(k * density);
-  e.min_size = std::max<std::size_t>(
-      1, static_cast<std::size_t>(std::lround(static_cast<double>(config.min_size) * density)));
+  const auto scaled = [&](std::size_t count) {
+    return std::max<std::size_t>(
+        1, static_cast<std::size_t>(std::lround(static_cast<double>(count) * density)));
+  };
+  e.min_size = scaled(config.min_size);
+  e.support_min_vertices = scaled(config.supports.min_vertices);
   return e;
 }
 
@@ -195,8 +207,23 @@ SceneCandidates findCandidates(const TriangleMesh& mesh, const DiscoveryConfig& 
   const EffectiveScales& effective = out.effective;
   watch.stop(&t.graph_ms, &t.graph_cpu_ms);
 
+  // The measures read the graph's convexity flags, never its weights: only segmentation sees
+  // the cuts, on a copy of the graph.
+  std::optional<MeshGraph> cut_graph;
+  if (config.supports.enabled) {
+    const Supports supports =
+        findSupports(mesh, graph, config.supports, effective.support_min_vertices);
+    out.support_planes = supports.planes.size();
+    for (const SupportPlane& p : supports.planes) out.support_vertices += p.vertex_count;
+    if (!supports.planes.empty()) {
+      cut_graph = graph;
+      cutAtSupports(*cut_graph, supports.on_support);
+    }
+  }
+  watch.stop(&t.support_ms, &t.support_cpu_ms);
+
   const std::vector<Segmentation> segmentations =
-      segmentAtScales(graph, effective.scales, effective.min_size);
+      segmentAtScales(cut_graph ? *cut_graph : graph, effective.scales, effective.min_size);
   watch.stop(&t.segment_ms, &t.segment_cpu_ms);
 
   out.segments = candidateSegments(mesh, segmentations, effective.min_size, config.filter);

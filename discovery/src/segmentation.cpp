@@ -119,6 +119,8 @@ Segmentation segmentSorted(std::size_t vertex_count, const std::vector<MeshEdge>
     small[v] = c.size(c.find(static_cast<std::int32_t>(v))) < min_size ? 1 : 0;
   }
   for (const MeshEdge& edge : sorted) {
+    // An edge of infinite weight is a cut (see cutAtSupports): never crossed, not even here.
+    if (!std::isfinite(edge.weight)) break;
     if (!small[static_cast<std::size_t>(edge.a)] && !small[static_cast<std::size_t>(edge.b)]) {
       continue;
     }

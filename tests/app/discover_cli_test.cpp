@@ -135,6 +135,42 @@ TEST(DiscoverCli, RanksBothMoundsFirstAndWritesEachHypothesisMesh) {
   EXPECT_EQ(testing::entryCount(dir / "out" / "objects"), h.size());
 }
 
+TEST(DiscoverCli, PaperSegmentationLeavesTheTableUncut) {
+  TempDir dir;
+  const TriangleMesh mesh = twoMounds();
+  writePly(dir / "scene.ply", mesh);
+  for (const bool paper : {false, true}) {
+    std::vector<std::string> args = {"discover", (dir / "scene.ply").string(), "--out",
+                                     (dir / "out").string(), "--no-catalog"};
+    if (paper) args.push_back("--paper-segmentation");
+    const ProcessResult r = objscan(args);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const nlohmann::json doc = readJson(dir / "out" / "hypotheses.json");
+    const nlohmann::json& scene = doc["scenes"][0];
+    // The table is the one support, every vertex of it at least 6 cm from a mound's centre.
+    std::size_t table = 0;
+    for (const Eigen::Vector3f& p : mesh.positions) {
+      table += std::hypot(p.x() + 0.15f, p.y()) > 0.06f + 1e-4f &&
+               std::hypot((p.x() - 0.15f) / 0.06f, (p.y() - 0.05f) / 0.10f) > 1.0f + 1e-3f;
+    }
+    EXPECT_EQ(scene["support_planes"], paper ? 0 : 1);
+    if (paper) {
+      EXPECT_EQ(scene["support_vertices"], 0);
+    } else {
+      EXPECT_GE(scene["support_vertices"].get<std::size_t>(), table);
+      EXPECT_LT(scene["support_vertices"].get<std::size_t>(), mesh.positions.size() - 600);
+    }
+    EXPECT_TRUE(scene["timings_ms"].contains("supports"));
+    // Either way, the two mounds come first.
+    const nlohmann::json& h = doc["hypotheses"];
+    ASSERT_GE(h.size(), 2u);
+    for (std::size_t i = 0; i < 2; ++i) {
+      const auto v = h[i]["vertices"].get<std::vector<std::int32_t>>();
+      EXPECT_GE(std::max(iou(v, mesh, 1), iou(v, mesh, 2)), 0.7) << "paper " << paper;
+    }
+  }
+}
+
 TEST(DiscoverCli, TheCatalogServesARepeatedSceneAndGivesRecurrence) {
   TempDir dir;
   writePly(dir / "a.ply", twoMounds());

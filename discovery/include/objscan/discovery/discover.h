@@ -12,6 +12,7 @@
 #include "objscan/discovery/scoring.h"
 #include "objscan/discovery/segment.h"
 #include "objscan/discovery/shape_measures.h"
+#include "objscan/discovery/supports.h"
 
 /// One scene mesh to ranked object hypotheses (the paper's section IV): graph, segmentation at
 /// several scales, hard filters, the five shape measures (findCandidates); recurrence against
@@ -31,6 +32,9 @@ struct DiscoveryConfig {
   /// Median edge length of a mesh at the paper's density: marching cubes on KinFu's 3 m / 512
   /// voxels (5.86 mm), measured on objscan fuse's meshes of TUM fr2/desk and the synthetic scenes.
   float reference_spacing_m = 0.00587f;
+  /// Cut the mesh at its support surfaces before segmenting (objscan's extension; see
+  /// supports.h). Off: the paper's segmentation.
+  SupportConfig supports;
   SegmentFilter filter;
   double max_iou = 0.7;               ///< the paper's non-maximum suppression threshold
   float symmetry_beta = 0.2f;         ///< the paper's beta (section IV-B)
@@ -47,10 +51,11 @@ struct DiscoveryConfig {
 /// recomputes a scene seen with different settings.
 std::string settingsKey(const DiscoveryConfig& config);
 
-/// min_size and scales for `mesh` (equal to the config's without scale_with_density).
+/// min_size, scales and the support size for `mesh` (the config's without scale_with_density).
 struct EffectiveScales {
   std::vector<float> scales;
   std::size_t min_size = 0;
+  std::size_t support_min_vertices = 0;
   double median_edge_m = 0.0;
 };
 EffectiveScales effectiveScales(const MeshGraph& graph, const TriangleMesh& mesh,
@@ -69,10 +74,11 @@ using MeasureCpuMs = std::array<double, 5>;
 /// Where a discoverObjects call spent its time, and how much it found.
 struct DiscoveryTimings {
   /// Wall-clock time of each stage, milliseconds.
-  double graph_ms = 0.0, segment_ms = 0.0, filter_ms = 0.0, measure_ms = 0.0, suppress_ms = 0.0;
+  double graph_ms = 0.0, support_ms = 0.0, segment_ms = 0.0, filter_ms = 0.0, measure_ms = 0.0,
+         suppress_ms = 0.0;
   /// CPU time of the whole process (all threads) during each stage, milliseconds.
-  double graph_cpu_ms = 0.0, segment_cpu_ms = 0.0, filter_cpu_ms = 0.0, measure_cpu_ms = 0.0,
-         suppress_cpu_ms = 0.0;
+  double graph_cpu_ms = 0.0, support_cpu_ms = 0.0, segment_cpu_ms = 0.0, filter_cpu_ms = 0.0,
+         measure_cpu_ms = 0.0, suppress_cpu_ms = 0.0;
   /// Each measure's CPU time, milliseconds: its thread time summed over the distinct candidates
   /// (a segment that several scales produce is measured once), plus the per-scene look-up it
   /// needs (compactness: the triangle index; smoothness: the tangent neighbours; local
@@ -109,10 +115,13 @@ struct SceneCandidates {
   std::vector<Segment> segments;
   std::vector<ShapeMeasures> measures;
   DiscoveryTimings timings;
-  EffectiveScales effective;  ///< the min_size and scales used, and the mesh's median edge
+  EffectiveScales effective;         ///< the min_size and scales used, and the mesh's median edge
+  std::size_t support_planes = 0;    ///< planes with support regions (none when disabled)
+  std::size_t support_vertices = 0;  ///< vertices on them
 };
 
-/// Graph, segmentation at every scale, filters and the five shape measures. Throws
+/// Graph, supports (unless disabled), segmentation at every scale, filters and the five shape
+/// measures. Throws
 /// std::invalid_argument for a bad config or a mesh that fails validate() or has no normals.
 SceneCandidates findCandidates(const TriangleMesh& mesh, const DiscoveryConfig& config);
 

@@ -1,0 +1,149 @@
+#include "objscan/discovery/supports.h"
+
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <stdexcept>
+
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
+#include <pcl/sample_consensus/ransac.h>
+#include <pcl/sample_consensus/sac_model_plane.h>
+
+namespace objscan::discovery {
+
+namespace {
+
+/// RANSAC draws its samples from at most this many vertices: a plane holding a few percent of a
+/// scene still has hundreds of them, and each iteration stays cheap.
+constexpr std::size_t kMaxFitPoints = 20000;
+
+/// The vertices of `members` grouped into regions connected by the graph's edges: per vertex,
+/// its region's representative (meaningful only for members).
+std::vector<std::int32_t> connectedRegions(const MeshGraph& graph,
+                                           const std::vector<std::uint8_t>& members) {
+  std::vector<std::int32_t> parent(members.size());
+  std::iota(parent.begin(), parent.end(), 0);
+  const auto find = [&](std::int32_t x) {
+    while (parent[static_cast<std::size_t>(x)] != x) {
+      auto& p = parent[static_cast<std::size_t>(x)];
+      p = parent[static_cast<std::size_t>(p)];
+      x = p;
+    }
+    return x;
+  };
+  for (const MeshEdge& e : graph.edges) {
+    if (!members[static_cast<std::size_t>(e.a)] || !members[static_cast<std::size_t>(e.b)]) {
+      continue;
+    }
+    const std::int32_t a = find(e.a), b = find(e.b);
+    if (a != b) parent[static_cast<std::size_t>(a)] = b;
+  }
+  for (std::size_t v = 0; v < parent.size(); ++v) parent[v] = find(static_cast<std::int32_t>(v));
+  return parent;
+}
+
+}  // namespace
+
+void SupportConfig::validate() const {
+  if (!(distance_m > 0.0f) || !std::isfinite(distance_m)) {
+    throw std::invalid_argument("the support distance must be a positive number of metres");
+  }
+  if (!(max_angle_deg > 0.0f && max_angle_deg < 90.0f)) {
+    throw std::invalid_argument("the support normal angle must lie between 0 and 90 degrees");
+  }
+  if (min_vertices < 3) throw std::invalid_argument("a support needs at least 3 vertices");
+  if (max_planes < 0 || ransac_iterations < 1) {
+    throw std::invalid_argument("supports need max_planes >= 0 and at least 1 RANSAC iteration");
+  }
+}
+
+Supports findSupports(const TriangleMesh& mesh, const MeshGraph& graph, const SupportConfig& config,
+                      std::size_t min_vertices) {
+  config.validate();
+  if (!mesh.hasNormals()) {
+    throw std::invalid_argument("the mesh has no vertex normals, which supports need");
+  }
+  const std::size_t n = mesh.positions.size();
+  Supports out;
+  out.on_support.assign(n, 0);
+  min_vertices = std::max<std::size_t>(min_vertices, 3);
+  if (n < min_vertices) return out;
+
+  auto cloud = std::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
+  cloud->reserve(n);
+  for (const Eigen::Vector3f& p : mesh.positions) cloud->push_back({p.x(), p.y(), p.z()});
+  const float min_cos = std::cos(config.max_angle_deg * static_cast<float>(M_PI) / 180.0f);
+  // Vertices on a plane found already (within the distance, whatever their normals): later
+  // planes are fitted to the rest, so that no plane is found twice.
+  std::vector<std::uint8_t> taken(n, 0);
+  std::vector<std::uint8_t> on_plane(n, 0);
+  for (int k = 0; k < config.max_planes; ++k) {
+    std::size_t remaining = 0;
+    for (std::size_t v = 0; v < n; ++v) remaining += taken[v] ? 0 : 1;
+    if (remaining < min_vertices) break;
+    const std::size_t stride = (remaining + kMaxFitPoints - 1) / kMaxFitPoints;
+    pcl::Indices sample;
+    sample.reserve(remaining / stride + 1);
+    for (std::size_t v = 0, seen = 0; v < n; ++v) {
+      if (!taken[v] && seen++ % stride == 0) sample.push_back(static_cast<pcl::index_t>(v));
+    }
+    // PCL seeds both the model's and RANSAC's generators with a constant unless asked not to.
+    auto model = std::make_shared<pcl::SampleConsensusModelPlane<pcl::PointXYZ>>(cloud, sample);
+    pcl::RandomSampleConsensus<pcl::PointXYZ> ransac(model, config.distance_m);
+    ransac.setMaxIterations(config.ransac_iterations);
+    if (!ransac.computeModel()) break;
+    pcl::Indices inliers;
+    ransac.getInliers(inliers);
+    Eigen::VectorXf coefficients, refined;
+    ransac.getModelCoefficients(coefficients);
+    if (inliers.size() < 3) break;
+    model->optimizeModelCoefficients(inliers, coefficients, refined);
+    Eigen::Vector3f normal = refined.head<3>();
+    const float length = normal.norm();
+    if (!(length > 0.0f) || !std::isfinite(length)) break;
+    normal /= length;
+    const float offset = refined[3] / length;
+
+    std::size_t near = 0;
+    std::fill(on_plane.begin(), on_plane.end(), 0);
+    for (std::size_t v = 0; v < n; ++v) {
+      if (taken[v] || std::abs(normal.dot(mesh.positions[v]) + offset) > config.distance_m) {
+        continue;
+      }
+      taken[v] = 1;
+      ++near;
+      if (std::abs(normal.dot(mesh.normals[v])) >= min_cos) on_plane[v] = 1;
+    }
+    // The largest plane left is smaller than a support: so is every later one.
+    if (near < min_vertices) break;
+    const std::vector<std::int32_t> region = connectedRegions(graph, on_plane);
+    std::vector<std::size_t> size(n, 0);
+    for (std::size_t v = 0; v < n; ++v) size[static_cast<std::size_t>(region[v])] += on_plane[v];
+    SupportPlane plane{normal, offset, 0};
+    for (std::size_t v = 0; v < n; ++v) {
+      if (on_plane[v] && size[static_cast<std::size_t>(region[v])] >= min_vertices) {
+        out.on_support[v] = 1;
+        ++plane.vertex_count;
+      }
+    }
+    if (plane.vertex_count > 0) out.planes.push_back(plane);
+  }
+  return out;
+}
+
+std::size_t cutAtSupports(MeshGraph& graph, const std::vector<std::uint8_t>& on_support) {
+  if (on_support.size() != graph.vertex_count) {
+    throw std::invalid_argument("cutAtSupports needs one entry per vertex of the graph");
+  }
+  std::size_t cut = 0;
+  for (MeshEdge& e : graph.edges) {
+    if (on_support[static_cast<std::size_t>(e.a)] != on_support[static_cast<std::size_t>(e.b)]) {
+      e.weight = std::numeric_limits<float>::infinity();
+      ++cut;
+    }
+  }
+  return cut;
+}
+
+}  // namespace objscan::discovery

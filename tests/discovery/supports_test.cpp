@@ -1,0 +1,156 @@
+// Support surfaces (objscan's extension of the paper's segmentation): the table under two mounds
+// is found and cut from them, so that segmentation cannot join an object to its support.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <vector>
+
+#include "objscan/discovery/mesh_graph.h"
+#include "objscan/discovery/segment.h"
+#include "objscan/discovery/segmentation.h"
+#include "objscan/discovery/supports.h"
+#include "test_support.h"
+
+namespace objscan::discovery {
+namespace {
+
+using objscan::testing::makeHeightField;
+
+/// A low, smooth mound (3 cm tall, radius `radius` with a 4 cm wide foot) centred at (cx, 0).
+float mound(float x, float y, float cx, float radius) {
+  const float r = std::hypot(x - cx, y);
+  const float t = std::clamp((radius - r) / 0.04f, 0.0f, 1.0f);
+  return 0.03f * t * t * (3.0f - 2.0f * t);
+}
+
+/// An 0.8 x 0.8 m table on a 4 mm grid (40,401 vertices), 0.25 m above the origin, with two mounds.
+TriangleMesh tableWithMounds() {
+  return makeHeightField(201, 0.4f, [](float x, float y) {
+    return 0.25f + std::max(mound(x, y, -0.15f, 0.08f), mound(x, y, 0.15f, 0.06f));
+  });
+}
+
+/// Vertices raised more than `above` over the table, on the side of x's sign `side`.
+std::vector<std::int32_t> raised(const TriangleMesh& mesh, float above, float side) {
+  std::vector<std::int32_t> v;
+  for (std::size_t i = 0; i < mesh.positions.size(); ++i) {
+    const Eigen::Vector3f& p = mesh.positions[i];
+    if (p.z() > 0.25f + above && p.x() * side > 0.0f) v.push_back(static_cast<std::int32_t>(i));
+  }
+  return v;
+}
+
+TEST(Supports, TheTableIsTheOnlySupportAndTheMoundsAreOffIt) {
+  const TriangleMesh mesh = tableWithMounds();
+  const MeshGraph graph = buildMeshGraph(mesh);
+  const Supports s = findSupports(mesh, graph, SupportConfig{}, 3000);
+  ASSERT_EQ(s.planes.size(), 1u);
+  const SupportPlane& plane = s.planes[0];
+  EXPECT_GT(std::abs(plane.normal.z()), 0.9999f);
+  // normal . p + offset = 0 at z = 0.25 m, within 1 mm.
+  EXPECT_NEAR(plane.offset / plane.normal.z(), -0.25f, 1e-3f);
+  ASSERT_EQ(s.on_support.size(), mesh.positions.size());
+  std::size_t flat = 0, flat_on = 0, support = 0;
+  for (std::size_t i = 0; i < mesh.positions.size(); ++i) {
+    const Eigen::Vector3f& p = mesh.positions[i];
+    support += s.on_support[i];
+    // Everything 1 cm or more above the table is off it, whatever its normal.
+    if (p.z() > 0.26f) {
+      EXPECT_EQ(s.on_support[i], 0) << "vertex " << i;
+    }
+    // The flat table, clear of the mounds' feet, is on it.
+    if (std::hypot(p.x() + 0.15f, p.y()) > 0.09f && std::hypot(p.x() - 0.15f, p.y()) > 0.07f) {
+      ++flat;
+      flat_on += s.on_support[i];
+    }
+  }
+  EXPECT_EQ(flat_on, flat);
+  EXPECT_EQ(plane.vertex_count, support);
+}
+
+TEST(Supports, CutsKeepSegmentationFromJoiningAMoundToItsTable) {
+  const TriangleMesh mesh = tableWithMounds();
+  MeshGraph graph = buildMeshGraph(mesh);
+  // At a huge scale, FH joins everything: without cuts the scene is one segment.
+  constexpr float kHuge = 1e6f;
+  EXPECT_EQ(segmentGraph(graph, kHuge, 50).segment_count, 1u);
+
+  const Supports s = findSupports(mesh, graph, SupportConfig{}, 3000);
+  std::size_t expected = 0;
+  for (const MeshEdge& e : graph.edges) {
+    expected +=
+        s.on_support[static_cast<std::size_t>(e.a)] != s.on_support[static_cast<std::size_t>(e.b)];
+  }
+  const MeshGraph uncut = graph;
+  EXPECT_EQ(cutAtSupports(graph, s.on_support), expected);
+  EXPECT_GT(expected, 0u);
+  for (std::size_t k = 0; k < graph.edges.size(); ++k) {
+    const MeshEdge& e = graph.edges[k];
+    const bool across =
+        s.on_support[static_cast<std::size_t>(e.a)] != s.on_support[static_cast<std::size_t>(e.b)];
+    EXPECT_EQ(std::isinf(e.weight), across) << "edge " << k;
+    if (!across) {
+      EXPECT_EQ(e.weight, uncut.edges[k].weight) << "edge " << k;
+    }
+  }
+
+  // With the cuts, even the huge scale leaves each mound on its own (with its rounded foot).
+  const Segmentation cut = segmentGraph(graph, kHuge, 50);
+  EXPECT_EQ(cut.segment_count, 3u);
+  for (float side : {-1.0f, 1.0f}) {
+    const std::vector<std::int32_t> body = raised(mesh, 0.005f, side);
+    const std::int32_t label = cut.labels[static_cast<std::size_t>(body.front())];
+    std::vector<std::int32_t> segment;
+    for (std::size_t i = 0; i < cut.labels.size(); ++i) {
+      if (cut.labels[i] == label) segment.push_back(static_cast<std::int32_t>(i));
+    }
+    EXPECT_GE(vertexIoU(segment, body), 0.8) << "mound at x " << 0.15f * side;
+    // Everything more than the support distance above the table is in it; nothing at the
+    // table's height is.
+    const std::vector<std::int32_t> high = raised(mesh, 0.0101f, side);
+    EXPECT_TRUE(std::includes(segment.begin(), segment.end(), high.begin(), high.end()));
+    for (std::int32_t v : segment) {
+      EXPECT_GT(mesh.positions[static_cast<std::size_t>(v)].z(), 0.25f + 1e-6f) << "vertex " << v;
+    }
+  }
+}
+
+TEST(Supports, NoSupportOnCurvedOrSmallSurfaces) {
+  // A deep bowl: its normals stay within 25 degrees of any one direction only over about 5 cm
+  // (at most some 500 vertices), short of a support.
+  const TriangleMesh bowl =
+      makeHeightField(201, 0.4f, [](float x, float y) { return 5.0f * (x * x + y * y); });
+  Supports s = findSupports(bowl, buildMeshGraph(bowl), SupportConfig{}, 3000);
+  EXPECT_TRUE(s.planes.empty());
+  EXPECT_EQ(std::count(s.on_support.begin(), s.on_support.end(), 1), 0);
+  // A flat 20 x 20 cm patch of 2601 vertices: smaller than a support.
+  const TriangleMesh patch = makeHeightField(51, 0.1f, [](float, float) { return 0.0f; });
+  s = findSupports(patch, buildMeshGraph(patch), SupportConfig{}, 3000);
+  EXPECT_TRUE(s.planes.empty());
+  // ... which is a support when the limit is below its size.
+  s = findSupports(patch, buildMeshGraph(patch), SupportConfig{}, 2000);
+  ASSERT_EQ(s.planes.size(), 1u);
+  EXPECT_EQ(s.planes[0].vertex_count, patch.positions.size());
+}
+
+TEST(Supports, BadArgumentsAreRejected) {
+  TriangleMesh mesh = tableWithMounds();
+  const MeshGraph graph = buildMeshGraph(mesh);
+  SupportConfig bad;
+  bad.max_angle_deg = 90.0f;
+  EXPECT_THROW(findSupports(mesh, graph, bad, 3000), std::invalid_argument);
+  bad = SupportConfig{};
+  bad.distance_m = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_THROW(findSupports(mesh, graph, bad, 3000), std::invalid_argument);
+  MeshGraph copy = graph;
+  EXPECT_THROW(cutAtSupports(copy, std::vector<std::uint8_t>(3, 0)), std::invalid_argument);
+  mesh.normals.clear();
+  EXPECT_THROW(findSupports(mesh, graph, SupportConfig{}, 3000), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace objscan::discovery
