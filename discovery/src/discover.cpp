@@ -159,31 +159,36 @@ std::string settingsKey(const DiscoveryConfig& c) {
   if (c.supports.enabled) {
     s << " supports " << c.supports.distance_m << ' ' << c.supports.max_angle_deg << ' '
       << c.supports.min_vertices << ' ' << c.supports.max_planes << ' '
-      << c.supports.ransac_iterations;
+      << c.supports.ransac_iterations << ' ' << c.supports.min_cut_off_size << " folds";
   }
   return s.str();
 }
 
 EffectiveScales effectiveScales(const MeshGraph& graph, const TriangleMesh& mesh,
                                 const DiscoveryConfig& config) {
-  EffectiveScales e{config.scales, config.min_size, config.supports.min_vertices, 0.0};
-  if (graph.edges.empty()) return e;
-  std::vector<float> lengths(graph.edges.size());
-  for (std::size_t i = 0; i < lengths.size(); ++i) {
-    const MeshEdge& edge = graph.edges[i];
-    lengths[i] = (mesh.positions[edge.a] - mesh.positions[edge.b]).norm();
+  EffectiveScales e{config.scales, config.min_size, config.supports.min_vertices, 0, 0.0};
+  std::size_t cut_off_size = config.supports.min_cut_off_size;
+  if (!graph.edges.empty()) {
+    std::vector<float> lengths(graph.edges.size());
+    for (std::size_t i = 0; i < lengths.size(); ++i) {
+      const MeshEdge& edge = graph.edges[i];
+      lengths[i] = (mesh.positions[edge.a] - mesh.positions[edge.b]).norm();
+    }
+    std::nth_element(lengths.begin(), lengths.begin() + lengths.size() / 2, lengths.end());
+    e.median_edge_m = lengths[lengths.size() / 2];
   }
-  std::nth_element(lengths.begin(), lengths.begin() + lengths.size() / 2, lengths.end());
-  e.median_edge_m = lengths[lengths.size() / 2];
-  if (!config.scale_with_density || !(e.median_edge_m > 0.0)) return e;
-  const double density = std::pow(config.reference_spacing_m / e.median_edge_m, 2.0);
-  for (float& k : e.scales) k = static_cast<float>(k * density);
-  const auto scaled = [&](std::size_t count) {
-    return std::max<std::size_t>(
-        1, static_cast<std::size_t>(std::lround(static_cast<double>(count) * density)));
-  };
-  e.min_size = scaled(config.min_size);
-  e.support_min_vertices = scaled(config.supports.min_vertices);
+  if (config.scale_with_density && e.median_edge_m > 0.0) {
+    const double density = std::pow(config.reference_spacing_m / e.median_edge_m, 2.0);
+    for (float& k : e.scales) k = static_cast<float>(k * density);
+    const auto scaled = [&](std::size_t count) {
+      return std::max<std::size_t>(
+          1, static_cast<std::size_t>(std::lround(static_cast<double>(count) * density)));
+    };
+    e.min_size = scaled(config.min_size);
+    e.support_min_vertices = scaled(config.supports.min_vertices);
+    cut_off_size = scaled(cut_off_size);
+  }
+  e.candidate_min_size = config.supports.enabled ? std::min(e.min_size, cut_off_size) : e.min_size;
   return e;
 }
 
@@ -214,6 +219,7 @@ SceneCandidates findCandidates(const TriangleMesh& mesh, const DiscoveryConfig& 
     const Supports supports =
         findSupports(mesh, graph, config.supports, effective.support_min_vertices);
     out.support_planes = supports.planes.size();
+    out.support_vertices = supports.fold_vertices;
     for (const SupportPlane& p : supports.planes) out.support_vertices += p.vertex_count;
     if (!supports.planes.empty()) {
       cut_graph = graph;
@@ -226,7 +232,8 @@ SceneCandidates findCandidates(const TriangleMesh& mesh, const DiscoveryConfig& 
       segmentAtScales(cut_graph ? *cut_graph : graph, effective.scales, effective.min_size);
   watch.stop(&t.segment_ms, &t.segment_cpu_ms);
 
-  out.segments = candidateSegments(mesh, segmentations, effective.min_size, config.filter);
+  out.segments =
+      candidateSegments(mesh, segmentations, effective.candidate_min_size, config.filter);
   t.candidate_count = out.segments.size();
   // A segment that several scales produce is one candidate: repeats would count twice in the
   // normalisation, in the catalog and among a segment's most similar ones for recurrence.

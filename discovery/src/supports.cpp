@@ -53,6 +53,7 @@ void SupportConfig::validate() const {
     throw std::invalid_argument("the support normal angle must lie between 0 and 90 degrees");
   }
   if (min_vertices < 3) throw std::invalid_argument("a support needs at least 3 vertices");
+  if (min_cut_off_size < 1) throw std::invalid_argument("min_cut_off_size must be at least 1");
   if (max_planes < 0 || ransac_iterations < 1) {
     throw std::invalid_argument("supports need max_planes >= 0 and at least 1 RANSAC iteration");
   }
@@ -128,6 +129,22 @@ Supports findSupports(const TriangleMesh& mesh, const MeshGraph& graph, const Su
       }
     }
     if (plane.vertex_count > 0) out.planes.push_back(plane);
+  }
+  // Where two supports meet (a shelf board and the wall behind it), fusion rounds the fold, and
+  // its vertices, tilted away from both planes, belong to neither. Left so, the fold would be a
+  // long strip joining everything that stands along it; it is a support too.
+  if (out.planes.size() >= 2) {
+    for (std::size_t v = 0; v < n; ++v) {
+      if (out.on_support[v]) continue;
+      int near_planes = 0;
+      for (const SupportPlane& p : out.planes) {
+        near_planes += std::abs(p.normal.dot(mesh.positions[v]) + p.offset) <= config.distance_m;
+      }
+      if (near_planes >= 2) {
+        out.on_support[v] = 1;
+        ++out.fold_vertices;
+      }
+    }
   }
   return out;
 }

@@ -119,6 +119,54 @@ TEST(Supports, CutsKeepSegmentationFromJoiningAMoundToItsTable) {
   }
 }
 
+/// A shelf's corner: an 0.8 m wide wall (y = 0, facing +y) and floor (z = 0, facing +z), each
+/// 0.4 m deep, meeting in a fold rounded to a 12 mm radius, on a 4 mm grid.
+TriangleMesh shelfCorner() {
+  constexpr float kRadius = 0.012f, kStep = 0.004f, kDepth = 0.4f;
+  // The profile in (y, z): down the wall, round the fold, out along the floor.
+  std::vector<Eigen::Vector2f> profile;
+  for (float z = kDepth; z > kRadius; z -= kStep) profile.emplace_back(0.0f, z);
+  for (int k = 0; k < 5; ++k) {
+    const float a = static_cast<float>(M_PI) * (1.0f + 0.5f * static_cast<float>(k) / 5.0f);
+    profile.emplace_back(kRadius + kRadius * std::cos(a), kRadius + kRadius * std::sin(a));
+  }
+  for (float y = kRadius; y <= kDepth; y += kStep) profile.emplace_back(y, 0.0f);
+  TriangleMesh mesh;
+  const int n = 201;
+  for (const Eigen::Vector2f& q : profile) {
+    for (int i = 0; i < n; ++i) {
+      mesh.positions.emplace_back(-0.4f + 0.8f * static_cast<float>(i) / (n - 1), q.x(), q.y());
+    }
+  }
+  for (int j = 0; j + 1 < static_cast<int>(profile.size()); ++j) {
+    for (int i = 0; i + 1 < n; ++i) {
+      const int v = j * n + i;
+      mesh.triangles.emplace_back(v, v + 1, v + n + 1);
+      mesh.triangles.emplace_back(v, v + n + 1, v + n);
+    }
+  }
+  mesh.computeNormals();
+  return mesh;
+}
+
+TEST(Supports, TheFoldBetweenTwoSupportsIsASupportToo) {
+  const TriangleMesh mesh = shelfCorner();
+  ASSERT_GT(mesh.normals[0].y(), 0.99f);      // the wall faces the room
+  ASSERT_GT(mesh.normals.back().z(), 0.99f);  // so does the floor
+  const Supports s = findSupports(mesh, buildMeshGraph(mesh), SupportConfig{}, 3000);
+  ASSERT_EQ(s.planes.size(), 2u);
+  for (const SupportPlane& p : s.planes) {
+    EXPECT_GT(std::max(std::abs(p.normal.y()), std::abs(p.normal.z())), 0.9999f);
+  }
+  // The fold's middle vertices are tilted 25-65 degrees from both planes: on neither plane, but
+  // within 1 cm of both. Every vertex ends up on a support, so nothing can join along the fold.
+  EXPECT_GE(s.fold_vertices, 201u);
+  EXPECT_EQ(s.planes[0].vertex_count + s.planes[1].vertex_count + s.fold_vertices,
+            mesh.positions.size());
+  EXPECT_EQ(static_cast<std::size_t>(std::count(s.on_support.begin(), s.on_support.end(), 1)),
+            mesh.positions.size());
+}
+
 TEST(Supports, NoSupportOnCurvedOrSmallSurfaces) {
   // A deep bowl: its normals stay within 25 degrees of any one direction only over about 5 cm
   // (at most some 500 vertices), short of a support.

@@ -56,6 +56,9 @@ struct EffectiveScales {
   std::vector<float> scales;
   std::size_t min_size = 0;
   std::size_t support_min_vertices = 0;
+  /// The smallest candidate: min_size, or with supports the smaller min_cut_off_size (segments
+  /// under min_size exist only where segmentation could not merge them).
+  std::size_t candidate_min_size = 0;
   double median_edge_m = 0.0;
 };
 EffectiveScales effectiveScales(const MeshGraph& graph, const TriangleMesh& mesh,
@@ -117,7 +120,7 @@ struct SceneCandidates {
   DiscoveryTimings timings;
   EffectiveScales effective;         ///< the min_size and scales used, and the mesh's median edge
   std::size_t support_planes = 0;    ///< planes with support regions (none when disabled)
-  std::size_t support_vertices = 0;  ///< vertices on them
+  std::size_t support_vertices = 0;  ///< vertices on them and on their folds
 };
 
 /// Graph, supports (unless disabled), segmentation at every scale, filters and the five shape

@@ -22,7 +22,8 @@ struct Segmentation {
 /// vertices is merged across its cheapest edge into a neighbour, edges taken in increasing weight.
 /// A group of vertices with no edge to the rest of the mesh stays a segment of its own, whatever
 /// its size; so does one whose only edges to the rest have infinite weight (cuts, see
-/// cutAtSupports): they are never crossed. Throws std::invalid_argument for a negative or NaN scale.
+/// cutAtSupports): they are never crossed. Throws std::invalid_argument for a negative or NaN
+/// scale.
 Segmentation segmentGraph(const MeshGraph& graph, float scale, std::size_t min_size);
 
 /// segmentGraph at each scale, sorting the edges once and running the scales in parallel.

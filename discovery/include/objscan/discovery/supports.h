@@ -33,6 +33,11 @@ struct SupportConfig {
   /// paper's density (scaled as min_size is): 3000 vertices are about 0.09 m^2, larger than the
   /// top of any object the paper's scenes hold (a keyboard's is about 0.07 m^2).
   std::size_t min_vertices = 3000;
+  /// Segmentation merges a segment smaller than m_size into a neighbour, but never across a cut:
+  /// an object that the cuts leave on its own stays a segment, however small. It is a candidate
+  /// from this many vertices at the paper's density (scaled as min_size is): about 30 cm^2 of
+  /// surface, a lying marker's visible half. Without supports, m_size is the only floor.
+  std::size_t min_cut_off_size = 100;
   int max_planes = 6;  ///< planes looked for, largest first
   int ransac_iterations = 200;
 
@@ -48,8 +53,11 @@ struct SupportPlane {
 
 struct Supports {
   std::vector<SupportPlane> planes;
-  /// Per mesh vertex: 1 when it belongs to a support region.
+  /// Per mesh vertex: 1 when it belongs to a support region or to a fold.
   std::vector<std::uint8_t> on_support;
+  /// Vertices within the distance of two or more supports' planes whatever their normals: the
+  /// rounded fold where a shelf board meets its wall. Supports too; not in any plane's count.
+  std::size_t fold_vertices = 0;
 };
 
 /// The support regions of `mesh`, whose graph is `graph`: planes fitted by RANSAC (PCL's, on at
@@ -57,6 +65,7 @@ struct Supports {
 /// planes, then refitted to their inliers by least squares), largest first; on each, the vertices
 /// within `distance_m` whose normals agree, grouped into connected regions over the mesh's edges;
 /// the regions of at least `min_vertices` (already scaled to the mesh's density) are supports.
+/// Then the vertices near two supports' planes (folds) join them.
 /// `mesh` must have normals (std::invalid_argument otherwise).
 Supports findSupports(const TriangleMesh& mesh, const MeshGraph& graph, const SupportConfig& config,
                       std::size_t min_vertices);
