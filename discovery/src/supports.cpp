@@ -16,7 +16,7 @@ namespace {
 
 /// RANSAC draws its samples from at most this many vertices: a plane holding a few percent of a
 /// scene still has hundreds of them, and each iteration stays cheap.
-constexpr std::size_t kMaxFitPoints = 20000;
+constexpr std::size_t kMaxFitPoints = 5000;
 
 /// The vertices of `members` grouped into regions connected by the graph's edges: per vertex,
 /// its region's representative (meaningful only for members).

@@ -138,13 +138,7 @@ TriangleMesh shelfCorner() {
       mesh.positions.emplace_back(-0.4f + 0.8f * static_cast<float>(i) / (n - 1), q.x(), q.y());
     }
   }
-  for (int j = 0; j + 1 < static_cast<int>(profile.size()); ++j) {
-    for (int i = 0; i + 1 < n; ++i) {
-      const int v = j * n + i;
-      mesh.triangles.emplace_back(v, v + 1, v + n + 1);
-      mesh.triangles.emplace_back(v, v + n + 1, v + n);
-    }
-  }
+  testing::addGridTriangles(mesh, static_cast<int>(profile.size()), n);
   mesh.computeNormals();
   return mesh;
 }

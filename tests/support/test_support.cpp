@@ -105,15 +105,19 @@ TriangleMesh makeHeightField(int n, float half, const std::function<float(float,
       mesh.positions.emplace_back(x, y, f(x, y));
     }
   }
-  for (int j = 0; j + 1 < n; ++j) {
+  addGridTriangles(mesh, n, n);
+  mesh.computeNormals();
+  return mesh;
+}
+
+void addGridTriangles(TriangleMesh& mesh, int rows, int n) {
+  for (int j = 0; j + 1 < rows; ++j) {
     for (int i = 0; i + 1 < n; ++i) {
       const int v = j * n + i;
       mesh.triangles.emplace_back(v, v + 1, v + n + 1);
       mesh.triangles.emplace_back(v, v + n + 1, v + n);
     }
   }
-  mesh.computeNormals();
-  return mesh;
 }
 
 TriangleMesh makeRandomMesh(std::uint32_t seed, std::size_t vertices, std::size_t triangles,

@@ -57,6 +57,10 @@ TriangleMesh makeCube(float side_m = 1.0f);
 /// counter-clockwise seen from above, with area-weighted vertex normals (pointing up).
 TriangleMesh makeHeightField(int n, float half, const std::function<float(float, float)>& f);
 
+/// Two triangles per cell of a grid of `rows` rows of `n` vertices each (vertex j * n + i), wound
+/// as makeHeightField's: counter-clockwise seen from the side that i x j points to.
+void addGridTriangles(TriangleMesh& mesh, int rows, int n);
+
 /// A mesh with random positions (including awkward floats: tiny, huge, negative zero,
 /// subnormal), unit normals, colours with object labels, and random non-degenerate triangles;
 /// fixed seed.

@@ -61,7 +61,7 @@ struct Supports {
 };
 
 /// The support regions of `mesh`, whose graph is `graph`: planes fitted by RANSAC (PCL's, on at
-/// most 20,000 of the vertices not yet on a plane, seeded so that a mesh always gives the same
+/// most 5,000 of the vertices not yet on a plane, seeded so that a mesh always gives the same
 /// planes, then refitted to their inliers by least squares), largest first; on each, the vertices
 /// within `distance_m` whose normals agree, grouped into connected regions over the mesh's edges;
 /// the regions of at least `min_vertices` (already scaled to the mesh's density) are supports.
