@@ -9,12 +9,12 @@ if(NOT TARGET objscan::pcl)
   target_include_directories(objscan_pcl SYSTEM INTERFACE ${PCL_INCLUDE_DIRS})
   target_link_libraries(objscan_pcl INTERFACE ${PCL_LIBRARIES})
   target_compile_definitions(objscan_pcl INTERFACE ${PCL_DEFINITIONS})
-  # Only PCL's sample consensus (RANSAC) and what it needs: for discovery's support planes,
-  # which should not link PCL's I/O and, through it, VTK.
+  # PCL's sample consensus (RANSAC), for discovery's support planes, which should not link PCL's
+  # I/O and, through it, VTK. Its templates are compiled from the headers (PCL_NO_PRECOMPILE, see
+  # discovery/src/supports.cpp), so only pcl_common is linked.
   add_library(objscan_pcl_sac INTERFACE)
   add_library(objscan::pcl_sac ALIAS objscan_pcl_sac)
   target_include_directories(objscan_pcl_sac SYSTEM INTERFACE ${PCL_INCLUDE_DIRS})
-  target_link_libraries(objscan_pcl_sac INTERFACE ${PCL_SAMPLE_CONSENSUS_LIBRARIES}
-                        ${PCL_COMMON_LIBRARIES})
+  target_link_libraries(objscan_pcl_sac INTERFACE ${PCL_COMMON_LIBRARIES})
   target_compile_definitions(objscan_pcl_sac INTERFACE ${PCL_DEFINITIONS})
 endif()

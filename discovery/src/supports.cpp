@@ -5,6 +5,11 @@
 #include <numeric>
 #include <stdexcept>
 
+// PCL's templates are compiled here, with this build's flags, rather than taken precompiled
+// from libpcl_sample_consensus: Eigen allocates differently under AddressSanitizer (it no longer
+// trusts malloc's alignment), so an Eigen vector that the precompiled library allocates cannot
+// be freed by this code in the sanitizer build.
+#define PCL_NO_PRECOMPILE
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
 #include <pcl/sample_consensus/ransac.h>
