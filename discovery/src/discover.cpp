@@ -6,7 +6,6 @@
 #include <cmath>
 #include <ctime>
 #include <iomanip>
-#include <optional>
 #include <sstream>
 #include <stdexcept>
 
@@ -207,29 +206,25 @@ SceneCandidates findCandidates(const TriangleMesh& mesh, const DiscoveryConfig& 
   SceneCandidates out;
   DiscoveryTimings& t = out.timings;
   Stopwatch watch;
-  const MeshGraph graph = buildMeshGraph(mesh);
+  MeshGraph graph = buildMeshGraph(mesh);
   out.effective = effectiveScales(graph, mesh, config);
   const EffectiveScales& effective = out.effective;
   watch.stop(&t.graph_ms, &t.graph_cpu_ms);
 
-  // The measures read the graph's convexity flags, never its weights: only segmentation sees
-  // the cuts, on a copy of the graph.
-  std::optional<MeshGraph> cut_graph;
+  // The cuts change edge weights only, which nothing but segmentation reads (the measures read
+  // the convexity flags): the graph is cut in place, and the measures see the mesh uncut.
   if (config.supports.enabled) {
     const Supports supports =
         findSupports(mesh, graph, config.supports, effective.support_min_vertices);
     out.support_planes = supports.planes.size();
-    out.support_vertices = supports.fold_vertices;
-    for (const SupportPlane& p : supports.planes) out.support_vertices += p.vertex_count;
-    if (!supports.planes.empty()) {
-      cut_graph = graph;
-      cutAtSupports(*cut_graph, supports.on_support);
-    }
+    out.support_vertices = static_cast<std::size_t>(
+        std::count(supports.on_support.begin(), supports.on_support.end(), 1));
+    cutAtSupports(graph, supports.on_support);
   }
   watch.stop(&t.support_ms, &t.support_cpu_ms);
 
   const std::vector<Segmentation> segmentations =
-      segmentAtScales(cut_graph ? *cut_graph : graph, effective.scales, effective.min_size);
+      segmentAtScales(graph, effective.scales, effective.min_size);
   watch.stop(&t.segment_ms, &t.segment_cpu_ms);
 
   out.segments =

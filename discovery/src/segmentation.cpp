@@ -1,5 +1,7 @@
 #include "objscan/discovery/segmentation.h"
 
+#include "disjoint_sets.h"
+
 #include <algorithm>
 #include <array>
 #include <bit>
@@ -18,23 +20,14 @@ namespace {
 /// look-ups only follow parents, and the smaller their array, the more of it stays in cache.
 class Components {
  public:
-  explicit Components(std::size_t n) : parent_(n), root_(n) {
-    std::iota(parent_.begin(), parent_.end(), 0);
-  }
+  explicit Components(std::size_t n) : parents_(n), root_(n) {}
 
-  std::int32_t find(std::int32_t x) {
-    while (parent_[static_cast<std::size_t>(x)] != x) {
-      auto& p = parent_[static_cast<std::size_t>(x)];
-      p = parent_[static_cast<std::size_t>(p)];  // path halving
-      x = p;
-    }
-    return x;
-  }
+  std::int32_t find(std::int32_t x) { return parents_.find(x); }
 
   /// Joins the roots a and b through an edge of weight w (the largest so far in both).
   void join(std::int32_t a, std::int32_t b, float w) {
     if (root(a).size < root(b).size) std::swap(a, b);
-    parent_[static_cast<std::size_t>(b)] = a;
+    parents_.attach(b, a);
     root(a).size += root(b).size;
     root(a).internal = w;
   }
@@ -42,8 +35,7 @@ class Components {
   std::size_t size(std::int32_t r) const { return root_[static_cast<std::size_t>(r)].size; }
   float internal(std::int32_t r) const { return root_[static_cast<std::size_t>(r)].internal; }
 
-  /// Asks the memory system for x's parent ahead of its use.
-  void prefetch(std::int32_t x) const { __builtin_prefetch(&parent_[static_cast<std::size_t>(x)]); }
+  void prefetch(std::int32_t x) const { parents_.prefetch(x); }
 
  private:
   /// What a component's root holds (meaningless for other vertices).
@@ -52,7 +44,7 @@ class Components {
     float internal = 0.0f;
   };
   Root& root(std::int32_t r) { return root_[static_cast<std::size_t>(r)]; }
-  std::vector<std::int32_t> parent_;
+  DisjointSets parents_;
   std::vector<Root> root_;
 };
 

@@ -2,7 +2,6 @@
 
 #include <cmath>
 #include <limits>
-#include <numeric>
 #include <stdexcept>
 
 // PCL's templates are compiled here, with this build's flags, rather than taken precompiled
@@ -14,6 +13,8 @@
 #include <pcl/point_types.h>
 #include <pcl/sample_consensus/ransac.h>
 #include <pcl/sample_consensus/sac_model_plane.h>
+
+#include "disjoint_sets.h"
 
 namespace objscan::discovery {
 
@@ -27,25 +28,18 @@ constexpr std::size_t kMaxFitPoints = 5000;
 /// its region's representative (meaningful only for members).
 std::vector<std::int32_t> connectedRegions(const MeshGraph& graph,
                                            const std::vector<std::uint8_t>& members) {
-  std::vector<std::int32_t> parent(members.size());
-  std::iota(parent.begin(), parent.end(), 0);
-  const auto find = [&](std::int32_t x) {
-    while (parent[static_cast<std::size_t>(x)] != x) {
-      auto& p = parent[static_cast<std::size_t>(x)];
-      p = parent[static_cast<std::size_t>(p)];
-      x = p;
-    }
-    return x;
-  };
+  DisjointSets sets(members.size());
   for (const MeshEdge& e : graph.edges) {
     if (!members[static_cast<std::size_t>(e.a)] || !members[static_cast<std::size_t>(e.b)]) {
       continue;
     }
-    const std::int32_t a = find(e.a), b = find(e.b);
-    if (a != b) parent[static_cast<std::size_t>(a)] = b;
+    const std::int32_t a = sets.find(e.a), b = sets.find(e.b);
+    if (a != b) sets.attach(a, b);
   }
-  for (std::size_t v = 0; v < parent.size(); ++v) parent[v] = find(static_cast<std::int32_t>(v));
-  return parent;
+  std::vector<std::int32_t> region(members.size());
+  for (std::size_t v = 0; v < region.size(); ++v)
+    region[v] = sets.find(static_cast<std::int32_t>(v));
+  return region;
 }
 
 }  // namespace
