@@ -23,11 +23,6 @@ namespace {
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
-struct Ranked {
-  std::size_t scene = 0;
-  discovery::Hypothesis hypothesis;
-};
-
 nlohmann::json vectorJson(const Eigen::Vector3f& v) { return {v.x(), v.y(), v.z()}; }
 
 nlohmann::json measuresJson(const discovery::ShapeMeasures& m) {
@@ -65,14 +60,9 @@ std::string rankFile(std::size_t rank) {
 }
 
 /// Writes the sub-meshes into OUT/objects.partial (a fresh folder).
-void stageObjects(const fs::path& out, const std::vector<Ranked>& ranked,
+void stageObjects(const fs::path& out, const std::vector<RankedHypothesis>& ranked,
                   const std::vector<LoadedScene>& scenes) {
-  const fs::path partial = out / "objects.partial";
-  std::error_code ec;
-  fs::remove_all(partial, ec);
-  if (!fs::create_directory(partial, ec) || ec) {
-    throw OutputError(partial, "cannot create a folder" + (ec ? ": " + ec.message() : ""));
-  }
+  const fs::path partial = freshPartialFolder(out, "objects");
   for (std::size_t i = 0; i < ranked.size(); ++i) {
     const TriangleMesh& mesh = scenes[ranked[i].scene].mesh;
     writePly(partial / fs::path(rankFile(i + 1)).filename(),
@@ -80,26 +70,9 @@ void stageObjects(const fs::path& out, const std::vector<Ranked>& ranked,
   }
 }
 
-/// Replaces OUT/objects with OUT/objects.partial, so OUT/objects never mixes this run's files
-/// with an earlier run's.
-void swapObjects(const fs::path& out) {
-  const fs::path partial = out / "objects.partial", old = out / "objects.old";
-  std::error_code ec;
-  fs::remove_all(old, ec);
-  if (fs::exists(out / "objects")) {
-    fs::rename(out / "objects", old, ec);
-    if (ec) throw OutputError(out / "objects", "cannot replace the folder: " + ec.message());
-  }
-  fs::rename(partial, out / "objects", ec);
-  if (ec) {
-    throw OutputError(out / "objects", "cannot move the new folder into place: " + ec.message());
-  }
-  fs::remove_all(old, ec);
-}
-
 }  // namespace
 
-int runDiscover(const DiscoverCommandOptions& options) {
+DiscoverOutcome discoverScenes(const DiscoverCommandOptions& options) {
   const auto start = Clock::now();
   options.config.validate();
   std::optional<discovery::ObjectnessModel> model;
@@ -108,13 +81,15 @@ int runDiscover(const DiscoverCommandOptions& options) {
   set_options.config = options.config;
   if (!options.no_catalog) set_options.catalog = options.catalog.value_or(defaultCatalogPath());
   prepareOutputFolder(options.out);
-  SceneSet set = readScenes(options.meshes, set_options);
+  DiscoverOutcome outcome;
+  SceneSet& set = outcome.set;
+  set = readScenes(options.meshes, set_options);
   const discovery::ObjectnessModel scorer =
       model ? *model
             : discovery::ObjectnessModel::average(set.normaliser,
                                                   discovery::varyingMeasures(set.normaliser));
 
-  std::vector<Ranked> ranked;
+  std::vector<RankedHypothesis>& ranked = outcome.ranked;
   std::vector<std::size_t> per_scene(set.scenes.size(), 0);
   for (std::size_t s = 0; s < set.scenes.size(); ++s) {
     for (discovery::Hypothesis& h :
@@ -123,9 +98,10 @@ int runDiscover(const DiscoverCommandOptions& options) {
       ++per_scene[s];
     }
   }
-  std::stable_sort(ranked.begin(), ranked.end(), [](const Ranked& a, const Ranked& b) {
-    return a.hypothesis.score > b.hypothesis.score;
-  });
+  std::stable_sort(ranked.begin(), ranked.end(),
+                   [](const RankedHypothesis& a, const RankedHypothesis& b) {
+                     return a.hypothesis.score > b.hypothesis.score;
+                   });
   // The sub-meshes are staged first, then the JSON that names them is written, then they are
   // swapped in: a failure before the swap leaves the previous run's pair as it was.
   stageObjects(options.out, ranked, set.scenes);
@@ -180,7 +156,16 @@ int runDiscover(const DiscoverCommandOptions& options) {
   }
   doc["hypotheses"] = list;
   writeFileAtomically(options.out / "hypotheses.json", doc.dump(1) + "\n");
-  swapObjects(options.out);
+  swapInFolder(options.out, "objects");
+  outcome.scorer = scorer.kind();
+  outcome.catalog = set_options.catalog;
+  outcome.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+  return outcome;
+}
+
+void printDiscoverSummary(const DiscoverCommandOptions& options, const DiscoverOutcome& outcome) {
+  const SceneSet& set = outcome.set;
+  const std::vector<RankedHypothesis>& ranked = outcome.ranked;
 
   std::size_t candidates = 0, cached = 0;
   for (const LoadedScene& s : set.scenes) {
@@ -190,11 +175,11 @@ int runDiscover(const DiscoverCommandOptions& options) {
   std::printf("scenes        %zu (%zu from the catalog)\n", set.scenes.size(), cached);
   std::printf("candidates    %zu after the filters; %zu hypotheses after suppression\n", candidates,
               ranked.size());
-  std::printf("scored by     %s%s\n", discovery::toString(scorer.kind()),
+  std::printf("scored by     %s%s\n", discovery::toString(outcome.scorer),
               options.model.empty() ? " of the z-normalised measures"
                                     : (" (" + options.model.string() + ")").c_str());
-  if (set_options.catalog) {
-    std::printf("catalog       %s: %zu scenes, %zu segments\n", set_options.catalog->c_str(),
+  if (outcome.catalog) {
+    std::printf("catalog       %s: %zu scenes, %zu segments\n", outcome.catalog->c_str(),
                 set.catalog_scenes, set.catalog_segments);
   }
   if (ranked.empty()) std::printf("no object candidates\n");
@@ -219,7 +204,11 @@ int runDiscover(const DiscoverCommandOptions& options) {
     }
   }
   std::printf("written       %s (hypotheses.json, objects/) in %.1f s\n", options.out.c_str(),
-              std::chrono::duration<double>(Clock::now() - start).count());
+              outcome.seconds);
+}
+
+int runDiscover(const DiscoverCommandOptions& options) {
+  printDiscoverSummary(options, discoverScenes(options));
   return kExitSuccess;
 }
 

@@ -13,6 +13,18 @@
 #include "objscan/discovery/recurrence.h"
 
 namespace objscan::app {
+
+std::vector<std::int32_t> labelsFromTruthMesh(const std::filesystem::path& truth_path,
+                                              const TriangleMesh& mesh) {
+  const TriangleMesh truth = readPly(truth_path);
+  if (!truth.hasLabels()) throw InputError(truth_path, "no per-vertex object_id");
+  try {
+    return discovery::transferLabels(mesh, truth);
+  } catch (const std::invalid_argument& e) {
+    throw InputError(truth_path, e.what());
+  }
+}
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -52,13 +64,7 @@ std::vector<std::int32_t> groundTruthLabels(const fs::path& argument, const Tria
                        "a labelled scene folder needs scene_gt.ply (objscan synth "
                        "writes it)");
     }
-    const TriangleMesh truth = readPly(truth_path);
-    if (!truth.hasLabels()) throw InputError(truth_path, "no per-vertex object_id");
-    try {
-      return discovery::transferLabels(mesh, truth);
-    } catch (const std::invalid_argument& e) {
-      throw InputError(truth_path, e.what());
-    }
+    return labelsFromTruthMesh(truth_path, mesh);
   }
   if (!mesh.hasLabels()) {
     throw InputError(argument,

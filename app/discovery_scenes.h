@@ -61,6 +61,12 @@ std::filesystem::path defaultCatalogPath();
 SceneSet readScenes(const std::vector<std::filesystem::path>& arguments,
                     const SceneSetOptions& options);
 
+/// The object id of each vertex of `mesh`, moved from a ground-truth mesh whose vertices carry
+/// object_id (objscan synth's scene_gt.ply) by the nearest surface within 1 cm. Throws InputError
+/// naming `truth_path` when it cannot be read or has no ids.
+std::vector<std::int32_t> labelsFromTruthMesh(const std::filesystem::path& truth_path,
+                                              const TriangleMesh& mesh);
+
 /// The segments a labelled run evaluates or trains on: each scene's candidates after
 /// non-maximum suppression by the average score (as the paper's data set holds them), each with
 /// its best ground-truth match.

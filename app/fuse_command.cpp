@@ -30,7 +30,7 @@ constexpr double kPoseMatchS = 0.02;
 
 }  // namespace
 
-int runFuse(const FuseCommandOptions& options) {
+FuseOutcome fuseSource(const FuseCommandOptions& options, const FuseLimits& limits) {
   options.config.validate();  // a bad setting is reported before anything is opened
   SourceOptions source_options;
   source_options.selection.start = options.start;
@@ -41,6 +41,7 @@ int runFuse(const FuseCommandOptions& options) {
     source_options.intrinsics = readIntrinsicsJson(options.intrinsics);
     source_options.intrinsics_origin = options.intrinsics.string();
   }
+  source_options.record = options.record;
   std::unique_ptr<capture::FrameSource> source = openFrameSource(options.source, source_options);
   // A recording or folder is decoded a few frames ahead, on a thread of its own, while the
   // previous frames are fused; a sensor is read directly, so that the freshest frame is fused.
@@ -61,36 +62,61 @@ int runFuse(const FuseCommandOptions& options) {
   prepareOutputFolder(options.out);
   log::info("fusing " + info.description + (given ? " at the given poses" : " with ICP tracking"));
 
+  FuseOutcome out;
+  out.source_description = info.description;
+  out.live = info.live;
   std::optional<fusion::Fusion> fusion;
   fusion::FrameTimings totals;
-  std::size_t frames_read = 0, bad_frames = 0, without_pose = 0;
-  std::string first_loss, first_skip;
-  bool interrupted = false;
+  std::string first_skip;
   const auto start = Clock::now();
   {
-    StopSignals signals;
-    ProgressBar progress("fusing frames", info.frame_count.value_or(0));
+    std::size_t total = info.frame_count.value_or(0);
+    if (limits.max_frames && (total == 0 || *limits.max_frames < total)) {
+      total = *limits.max_frames;
+    }
+    ProgressBar progress(limits.progress_label, total);
+    std::size_t read = 0;
     for (;;) {
       if (StopSignals::stopRequested()) {
-        interrupted = true;
+        out.interrupted = true;
+        out.stopped_by = "Ctrl-C / SIGTERM";
         break;
       }
-      capture::FrameResult r = source->next();
+      if (limits.max_frames && read >= *limits.max_frames) {
+        out.stopped_by = "frame limit";
+        break;
+      }
+      if (limits.max_seconds &&
+          std::chrono::duration<double>(Clock::now() - start).count() >= *limits.max_seconds) {
+        out.stopped_by = "time limit";
+        break;
+      }
+      capture::FrameResult r;
+      try {
+        r = source->next();
+      } catch (const std::runtime_error& e) {
+        if (!info.live) throw;
+        // A sensor unplugged mid-capture: what was fused (and recorded) so far is kept.
+        out.sensor_lost = e.what();
+        out.stopped_by = "sensor lost";
+        break;
+      }
       if (r.status == capture::FrameStatus::kEndOfStream) break;
+      ++read;
       progress.advance();
       if (r.status == capture::FrameStatus::kBadFrame) {
         log::warning("skipped a frame: " + r.reason);
-        ++bad_frames;
+        ++out.bad_frames;
         continue;
       }
-      ++frames_read;
+      ++out.frames_read;
       RgbdFrame& frame = r.frame;
       if (options.no_color) frame.color_rgb.release();
       std::optional<Pose> pose;
       if (given) {
         pose = nearestPose(*given, frame.stamp_s, kPoseMatchS);
         if (!pose) {
-          ++without_pose;
+          ++out.without_pose;
           continue;
         }
       }
@@ -107,18 +133,26 @@ int runFuse(const FuseCommandOptions& options) {
       totals += outcome.timings;
       if (outcome.status == fusion::FrameStatus::kLost) {
         log::debug("frame " + std::to_string(frame.index) + ": tracking lost: " + outcome.reason);
-        if (first_loss.empty()) {
-          first_loss = "frame " + std::to_string(frame.index) + ": " + outcome.reason;
+        if (out.first_loss.empty()) {
+          out.first_loss = "frame " + std::to_string(frame.index) + ": " + outcome.reason;
         }
       } else if (outcome.status == fusion::FrameStatus::kNoDepth && first_skip.empty()) {
         first_skip = "frame " + std::to_string(frame.index) + ": " + outcome.reason;
       }
     }
   }
-  const double fuse_s = std::chrono::duration<double>(Clock::now() - start).count();
+  out.fuse_s = std::chrono::duration<double>(Clock::now() - start).count();
+  // The recording is closed (and renamed into place) before anything else can fail.
+  out.recording = capture::finishRecording(*source, out.interrupted          ? "interrupted"
+                                                    : out.stopped_by.empty() ? "end of source"
+                                                                             : out.stopped_by);
+  if (options.record) out.recording_file = options.record->out;
+  if ((!fusion || fusion->trajectory().empty()) && !out.sensor_lost.empty()) {
+    throw std::runtime_error(out.sensor_lost);
+  }
   if (!fusion || fusion->trajectory().empty()) {
-    std::string why = frames_read == 0 ? "the source gave no readable frame"
-                      : without_pose == frames_read
+    std::string why = out.frames_read == 0 ? "the source gave no readable frame"
+                      : out.without_pose == out.frames_read
                           ? "no frame has a pose within 20 ms in " + options.poses
                           : "no frame had usable depth (" + first_skip + ")";
     throw InputError(options.source, "nothing to fuse: " + why);
@@ -126,51 +160,92 @@ int runFuse(const FuseCommandOptions& options) {
 
   const auto mesh_start = Clock::now();
   const TriangleMesh mesh = fusion::extractMesh(fusion->volume());
-  const double mesh_s = std::chrono::duration<double>(Clock::now() - mesh_start).count();
+  out.mesh_s = std::chrono::duration<double>(Clock::now() - mesh_start).count();
   if (mesh.triangles.empty()) {
     throw InputError(options.source, "the fused volume holds no surface to mesh");
   }
-  const fs::path mesh_file = options.out / "mesh.ply";
-  const fs::path trajectory_file = options.out / "trajectory.txt";
-  writePly(mesh_file, mesh);
-  writeTumTrajectory(trajectory_file, fusion->trajectory());
+  out.mesh_file = options.out / "mesh.ply";
+  out.trajectory_file = options.out / "trajectory.txt";
+  writePly(out.mesh_file, mesh);
+  writeTumTrajectory(out.trajectory_file, fusion->trajectory());
 
-  const std::size_t fused = fusion->trajectory().size();
-  const double n = static_cast<double>(fusion->framesProcessed());
-  std::printf("source        %s\n", info.description.c_str());
-  std::printf(
-      "frames        %zu read, %zu fused, %zu lost, %zu without depth, %zu unreadable%s\n",
-      frames_read, fused, fusion->framesLost(), fusion->framesSkipped(), bad_frames,
-      without_pose ? (", " + std::to_string(without_pose) + " without a pose").c_str() : "");
-  if (!first_loss.empty()) std::printf("first loss    %s\n", first_loss.c_str());
-  std::printf("volume        %zu blocks of 8^3 voxels of %.1f mm, %.1f MB\n",
-              fusion->volume().blockCount(), 1e3 * options.config.volume.voxel_size_m,
-              static_cast<double>(fusion->volume().memoryBytes()) / 1e6);
-  std::printf("mesh          %zu vertices, %zu triangles -> %s\n", mesh.positions.size(),
-              mesh.triangles.size(), mesh_file.string().c_str());
-  std::printf("trajectory    %zu poses -> %s\n", fused, trajectory_file.string().c_str());
-  std::printf(
-      "time          %.2f s fusing (%.1f frames/s; per frame: preprocess %.1f ms, track "
-      "%.1f ms, integrate %.1f ms, raycast %.1f ms), %.2f s meshing\n",
-      fuse_s, n / fuse_s, totals.preprocess_ms / n, totals.track_ms / n, totals.integrate_ms / n,
-      totals.raycast_ms / n, mesh_s);
+  out.frames_fused = fusion->trajectory().size();
+  out.frames_processed = fusion->framesProcessed();
+  out.frames_lost = fusion->framesLost();
+  out.frames_without_depth = fusion->framesSkipped();
+  out.blocks = fusion->volume().blockCount();
+  out.volume_mb = static_cast<double>(fusion->volume().memoryBytes()) / 1e6;
+  out.voxel_size_m = options.config.volume.voxel_size_m;
+  out.mesh_vertices = mesh.positions.size();
+  out.mesh_triangles = mesh.triangles.size();
+  const double n = static_cast<double>(std::max<std::size_t>(1, out.frames_processed));
+  out.per_frame_ms.preprocess_ms = totals.preprocess_ms / n;
+  out.per_frame_ms.track_ms = totals.track_ms / n;
+  out.per_frame_ms.integrate_ms = totals.integrate_ms / n;
+  out.per_frame_ms.raycast_ms = totals.raycast_ms / n;
   if (info.ground_truth && !given) {
     try {
-      const TrajectoryError ate =
-          absoluteTrajectoryError(fusion->trajectory(), *info.ground_truth, kPoseMatchS);
-      std::printf(
-          "ATE           RMSE %.1f mm, mean %.1f mm, max %.1f mm over %zu poses (vs the "
-          "source's ground truth)\n",
-          1e3 * ate.rmse_m, 1e3 * ate.mean_m, 1e3 * ate.max_m, ate.matched);
+      out.ate = absoluteTrajectoryError(fusion->trajectory(), *info.ground_truth, kPoseMatchS);
     } catch (const std::invalid_argument& e) {
       log::warning(std::string("no trajectory error: ") + e.what());
     }
   }
-  if (interrupted) {
-    std::printf("stopped by    Ctrl-C / SIGTERM: the outputs hold the %zu frames fused before it\n",
-                fused);
+  return out;
+}
+
+int reportSensorLoss(const FuseOutcome& o) {
+  if (o.sensor_lost.empty()) return kExitSuccess;
+  std::fflush(stdout);
+  std::fprintf(stderr, "objscan: error: %s; the outputs hold the %zu frames fused before it\n",
+               o.sensor_lost.c_str(), o.frames_fused);
+  return kExitRuntimeFailure;
+}
+
+void printFuseSummary(const FuseOutcome& o) {
+  std::printf("source        %s\n", o.source_description.c_str());
+  std::printf(
+      "frames        %zu read, %zu fused, %zu lost, %zu without depth, %zu unreadable%s\n",
+      o.frames_read, o.frames_fused, o.frames_lost, o.frames_without_depth, o.bad_frames,
+      o.without_pose ? (", " + std::to_string(o.without_pose) + " without a pose").c_str() : "");
+  if (!o.first_loss.empty()) std::printf("first loss    %s\n", o.first_loss.c_str());
+  std::printf("volume        %zu blocks of 8^3 voxels of %.1f mm, %.1f MB\n", o.blocks,
+              1e3 * o.voxel_size_m, o.volume_mb);
+  std::printf("mesh          %zu vertices, %zu triangles -> %s\n", o.mesh_vertices,
+              o.mesh_triangles, o.mesh_file.string().c_str());
+  std::printf("trajectory    %zu poses -> %s\n", o.frames_fused,
+              o.trajectory_file.string().c_str());
+  const fusion::FrameTimings& t = o.per_frame_ms;
+  std::printf(
+      "time          %.2f s fusing (%.1f frames/s; per frame: preprocess %.1f ms, track "
+      "%.1f ms, integrate %.1f ms, raycast %.1f ms), %.2f s meshing\n",
+      o.fuse_s, static_cast<double>(o.frames_processed) / o.fuse_s, t.preprocess_ms, t.track_ms,
+      t.integrate_ms, t.raycast_ms, o.mesh_s);
+  if (o.recording) {
+    const capture::RecordSummary& r = *o.recording;
+    std::printf("recording     %zu depth, %zu colour frames, %zu dropped -> %s%s\n", r.depth_frames,
+                r.color_frames, r.dropped, o.recording_file.string().c_str(),
+                r.failed ? (" (stopped early: " + r.stop_reason + ")").c_str() : "");
   }
-  return kExitSuccess;
+  if (o.ate) {
+    std::printf(
+        "ATE           RMSE %.1f mm, mean %.1f mm, max %.1f mm over %zu poses (vs the "
+        "source's ground truth)\n",
+        1e3 * o.ate->rmse_m, 1e3 * o.ate->mean_m, 1e3 * o.ate->max_m, o.ate->matched);
+  }
+}
+
+int runFuse(const FuseCommandOptions& options) {
+  FuseOutcome outcome;
+  {
+    StopSignals signals;
+    outcome = fuseSource(options);
+  }
+  printFuseSummary(outcome);
+  if (outcome.interrupted) {
+    std::printf("stopped by    Ctrl-C / SIGTERM: the outputs hold the %zu frames fused before it\n",
+                outcome.frames_fused);
+  }
+  return reportSensorLoss(outcome);
 }
 
 }  // namespace objscan::app

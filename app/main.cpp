@@ -17,6 +17,8 @@
 #include "objscan/core/error.h"
 #include "objscan/core/log.h"
 #include "record_command.h"
+#include "render_command.h"
+#include "scan_command.h"
 #include "synth_command.h"
 
 namespace {
@@ -24,18 +26,6 @@ namespace {
 using namespace objscan::app;
 
 constexpr const char* kVersion = "0.1.0";
-
-/// A subcommand that the design names but whose step has not been built yet.
-struct Planned {
-  const char* name;
-  const char* summary;
-  const char* step;
-};
-
-constexpr Planned kPlanned[] = {
-    {"render", "Render snapshots of the top hypotheses in DIR into DIR/renders/", "Step F"},
-    {"scan", "Capture (or replay) to ranked objects in one go: fuse, discover, render", "Step F"},
-};
 
 /// One line on stderr, whatever the message holds.
 void printError(const std::string& message) {
@@ -60,7 +50,8 @@ int run(int argc, char** argv) {
   app.add_flag("-q,--quiet", quiet, "Log only errors to stderr (no progress)")
       ->excludes(verbose_flag);
   app.footer(
-      "Exit codes: 0 success, 1 runtime failure, 2 bad usage or bad input.\n"
+      "Exit codes: 0 success, 1 runtime failure, 2 bad usage or bad input, 3 no sensor attached,\n"
+      "130 interrupted (Ctrl-C; what was written is complete).\n"
       "Run 'objscan <command> --help' for a command's options.\n");
 
   std::string info_path;
@@ -126,28 +117,30 @@ int run(int argc, char** argv) {
                    "X.oni, a TUM or 7-Scenes folder, synth:<seed>, live[:uri] or virtual:<source>")
       ->required();
   fuse->add_option("--out", fuse_options.out, "Folder for mesh.ply and trajectory.txt")->required();
-  fuse->add_option("--voxel-size", fuse_options.config.volume.voxel_size_m,
-                   "Voxel edge in metres (default: 3 m / 512, the paper's density)")
-      ->capture_default_str();
-  fuse->add_option("--truncation", truncation_m,
-                   "Truncation distance in metres (default: 0.03, or 3 voxels if larger)");
-  fuse->add_option("--min-depth", fuse_options.config.preprocess.min_depth_m,
-                   "Ignore depth nearer than this (m)")
-      ->capture_default_str();
-  fuse->add_option("--max-depth", fuse_options.config.preprocess.max_depth_m,
-                   "Ignore depth farther than this (m)")
-      ->capture_default_str();
-  fuse->add_option("--poses", fuse_options.poses,
-                   "Integrate at given poses instead of tracking: a TUM trajectory file, or "
-                   "'groundtruth' for the source's own");
-  fuse->add_option("--start", fuse_options.start, "First frame (0-based)")
-      ->check(CLI::NonNegativeNumber);
-  fuse->add_option("--end", fuse_options.end, "Stop before this frame")->check(CLI::PositiveNumber);
-  fuse->add_option("--every", fuse_options.every, "Use every n-th frame")
-      ->check(CLI::PositiveNumber);
-  fuse->add_option("--intrinsics", fuse_options.intrinsics,
-                   "intrinsics.json (fx, fy, cx, cy, width, height) replacing the source's");
-  fuse->add_flag("--no-color", fuse_options.no_color, "Fuse depth only (mesh without colours)");
+  const auto addFusionOptions = [](CLI::App* sub, FuseCommandOptions& o,
+                                   std::optional<float>& truncation) {
+    sub->add_option("--voxel-size", o.config.volume.voxel_size_m,
+                    "Voxel edge in metres (default: 3 m / 512, the paper's density)")
+        ->capture_default_str();
+    sub->add_option("--truncation", truncation,
+                    "Truncation distance in metres (default: 0.03, or 3 voxels if larger)");
+    sub->add_option("--min-depth", o.config.preprocess.min_depth_m,
+                    "Ignore depth nearer than this (m)")
+        ->capture_default_str();
+    sub->add_option("--max-depth", o.config.preprocess.max_depth_m,
+                    "Ignore depth farther than this (m)")
+        ->capture_default_str();
+    sub->add_option("--poses", o.poses,
+                    "Integrate at given poses instead of tracking: a TUM trajectory file, or "
+                    "'groundtruth' for the source's own");
+    sub->add_option("--start", o.start, "First frame (0-based)")->check(CLI::NonNegativeNumber);
+    sub->add_option("--end", o.end, "Stop before this frame")->check(CLI::PositiveNumber);
+    sub->add_option("--every", o.every, "Use every n-th frame")->check(CLI::PositiveNumber);
+    sub->add_option("--intrinsics", o.intrinsics,
+                    "intrinsics.json (fx, fy, cx, cy, width, height) replacing the source's");
+    sub->add_flag("--no-color", o.no_color, "Fuse depth only (mesh without colours)");
+  };
+  addFusionOptions(fuse, fuse_options, truncation_m);
 
   DiscoverCommandOptions discover_options;
   std::filesystem::path discover_catalog;
@@ -224,14 +217,88 @@ int run(int argc, char** argv) {
   train->add_option("--seed", train_options.seed, "Seed of the cross-validation folds")
       ->capture_default_str();
 
-  std::vector<std::pair<CLI::App*, const Planned*>> planned;
-  for (const Planned& p : kPlanned) {
-    CLI::App* sub =
-        app.add_subcommand(p.name, std::string(p.summary) + " [not built yet: " + p.step + "]");
-    sub->allow_extras();
-    sub->fallthrough(false);  // whatever follows is the unbuilt command's, not objscan's
-    planned.emplace_back(sub, &p);
-  }
+  const auto addRenderOptions = [](CLI::App* sub, RenderCommandOptions& o) {
+    sub->add_option("--top", o.top, "Hypotheses to paint and show in close-up")
+        ->check(CLI::Range(1, 100))
+        ->capture_default_str();
+    sub->add_option_function<std::string>(
+           "--size",
+           [&o](const std::string& size) {
+             int w = 0, h = 0;
+             char x = 0, extra = 0;
+             if (std::sscanf(size.c_str(), "%d%c%d%c", &w, &x, &h, &extra) != 3 || x != 'x') {
+               throw CLI::ValidationError("--size", "expected WIDTHxHEIGHT, e.g. 1280x960");
+             }
+             o.width = w;
+             o.height = h;
+           },
+           "Overview size in pixels, WIDTHxHEIGHT (close-ups are 3/8 of it)")
+        ->default_str("1280x960");
+    sub->add_option_function<std::string>(
+           "--view", [&o](const std::string& v) { o.view = objscan::render::parseViewKind(v); },
+           "Overview camera: auto (the capture's trajectory, else three-quarter), trajectory, "
+           "three-quarter or top")
+        ->check(CLI::IsMember({"auto", "trajectory", "three-quarter", "top"}))
+        ->default_str("auto");
+    sub->add_flag("--ranks-image", o.ranks_image,
+                  "Also write renders/overview_ranks.png: 16-bit, the rank painted at each pixel");
+  };
+
+  RenderCommandOptions render_options;
+  CLI::App* render = app.add_subcommand(
+      "render",
+      "Render the top hypotheses of a results folder into DIR/renders/ and DIR/report.html");
+  render
+      ->add_option("dir", render_options.dir,
+                   "A results folder of objscan scan (or discover): hypotheses.json, mesh.ply, "
+                   "trajectory.txt")
+      ->required();
+  addRenderOptions(render, render_options);
+
+  ScanCommandOptions scan_options;
+  std::optional<float> scan_truncation_m;
+  std::filesystem::path scan_catalog;
+  bool scan_compress_color = false;
+  CLI::App* scan = app.add_subcommand(
+      "scan", "Capture (or replay) to ranked objects in one go: fuse, discover, render, report");
+  scan->add_option(
+      "source", scan_options.source,
+      "X.oni, a TUM or 7-Scenes folder, synth:<seed>, virtual:<source>, or live[:uri]; "
+      "default: the first live sensor");
+  scan->add_option("--out", scan_options.out,
+                   "Folder for mesh.ply, trajectory.txt, hypotheses.json, objects/, renders/, "
+                   "report.html, timings.json")
+      ->required();
+  auto* scan_frames = scan->add_option("--frames", scan_options.limits.max_frames,
+                                       "Stop capture after this many frames")
+                          ->check(CLI::PositiveNumber);
+  scan->add_option("--seconds", scan_options.limits.max_seconds, "Stop capture after this long")
+      ->check(CLI::PositiveNumber)
+      ->excludes(scan_frames);
+  addFusionOptions(scan, scan_options.fuse, scan_truncation_m);
+  std::filesystem::path scan_record;
+  scan->add_option("--record", scan_record,
+                   "Save the live sensor's raw stream to this .oni while scanning (depth "
+                   "lossless; replayable however capture ends)");
+  scan->add_flag("--compress-color", scan_compress_color,
+                 "With --record: store colour as JPEG (lossy, about 10x smaller)");
+  auto* scan_catalog_option =
+      scan->add_option("--catalog", scan_catalog,
+                       "Catalog of scenes seen so far (default $OBJSCAN_CATALOG or "
+                       "~/.local/share/objscan/catalog.sqlite)");
+  scan->add_flag("--no-catalog", scan_options.discover.no_catalog, "Use no catalog")
+      ->excludes(scan_catalog_option);
+  scan->add_option("--model", scan_options.discover.model,
+                   "Score with a classifier from objscan train (default: the average)");
+  addDiscoveryOptions(scan, scan_options.discover.config);
+  addRenderOptions(scan, scan_options.render);
+  auto* truth_option = scan->add_option(
+      "--ground-truth", scan_options.ground_truth,
+      "Scene mesh with per-vertex object_id (objscan synth's scene_gt.ply) to score the "
+      "hypotheses against (default: X.scene_gt.ply beside X.oni, scene_gt.ply in a folder)");
+  scan->add_flag("--no-ground-truth", scan_options.no_ground_truth,
+                 "Do not look for ground truth beside the source")
+      ->excludes(truth_option);
 
   try {
     app.parse(argc, argv);
@@ -257,13 +324,6 @@ int run(int argc, char** argv) {
                          : verbose ? objscan::log::Level::kDebug
                                    : objscan::log::Level::kInfo);
 
-  for (const auto& [sub, p] : planned) {
-    if (sub->parsed()) {
-      printError(std::string("'") + p->name + "' is not built yet (it arrives with " + p->step +
-                 ")");
-      return kExitBadInput;
-    }
-  }
   if (info->parsed()) runInfo(info_path);
   if (devices->parsed()) runDevices();
   if (record->parsed()) return runRecord(record_options);
@@ -282,6 +342,22 @@ int run(int argc, char** argv) {
     return runEval(eval_options);
   }
   if (train->parsed()) return runTrain(train_options);
+  if (render->parsed()) return runRender(render_options);
+  if (scan->parsed()) {
+    auto& volume = scan_options.fuse.config.volume;
+    volume.truncation_m = scan_truncation_m.value_or(std::max(0.03f, 3.0f * volume.voxel_size_m));
+    if (!scan_catalog.empty()) scan_options.discover.catalog = scan_catalog;
+    if (!scan_record.empty()) {
+      objscan::capture::LiveRecording live_record;
+      live_record.out = scan_record;
+      live_record.compress_color = scan_compress_color;
+      scan_options.fuse.record = live_record;
+    } else if (scan_compress_color) {
+      printError("--compress-color needs --record (run 'objscan scan --help')");
+      return kExitBadInput;
+    }
+    return runScan(scan_options);
+  }
   return kExitSuccess;
 }
 
@@ -302,6 +378,9 @@ int main(int argc, char** argv) {
   } catch (const std::invalid_argument& e) {
     printError(e.what());
     return kExitBadInput;
+  } catch (const objscan::NoSensorError& e) {
+    printError(e.what());
+    return kExitNoSensor;
   } catch (const std::exception& e) {
     printError(e.what());
     return kExitRuntimeFailure;

@@ -19,4 +19,34 @@ inline void prepareOutputFolder(const std::filesystem::path& out) {
   }
 }
 
+/// Creates OUT/NAME.partial empty (removing what an interrupted run left there) and returns it.
+/// Outputs that are folders are written there and moved into place by swapInFolder.
+inline std::filesystem::path freshPartialFolder(const std::filesystem::path& out,
+                                                const std::string& name) {
+  const std::filesystem::path partial = out / (name + ".partial");
+  std::error_code ec;
+  std::filesystem::remove_all(partial, ec);
+  if (!std::filesystem::create_directory(partial, ec) || ec) {
+    throw OutputError(partial, "cannot create a folder" + (ec ? ": " + ec.message() : ""));
+  }
+  return partial;
+}
+
+/// Replaces OUT/NAME with OUT/NAME.partial, so OUT/NAME never mixes one run's files with
+/// another's.
+inline void swapInFolder(const std::filesystem::path& out, const std::string& name) {
+  namespace fs = std::filesystem;
+  const fs::path target = out / name, partial = out / (name + ".partial"),
+                 old = out / (name + ".old");
+  std::error_code ec;
+  fs::remove_all(old, ec);
+  if (fs::exists(target)) {
+    fs::rename(target, old, ec);
+    if (ec) throw OutputError(target, "cannot replace the folder: " + ec.message());
+  }
+  fs::rename(partial, target, ec);
+  if (ec) throw OutputError(target, "cannot move the new folder into place: " + ec.message());
+  fs::remove_all(old, ec);
+}
+
 }  // namespace objscan::app

@@ -40,10 +40,8 @@ int runRecord(const RecordCommandOptions& options) {
 
   // Ground truth travels with recordings of a virtual sensor whose source has it. Opening the
   // source here first also reports a bad folder before any recording starts.
-  std::optional<Trajectory> ground_truth;
   if (capture::isVirtualSensorUri(options.device)) {
-    const capture::VirtualSensorUri uri = capture::parseVirtualSensorUri(options.device);
-    ground_truth = openFrameSource(uri.source, {})->info().ground_truth;
+    record.ground_truth = virtualSensorGroundTruth(options.device);
   }
 
   capture::RecordSummary summary;
@@ -65,10 +63,6 @@ int runRecord(const RecordCommandOptions& options) {
                       std::to_string(static_cast<int>(seconds)) + " s");
           }
         });
-  }
-  if (ground_truth && !ground_truth->poses.empty()) {
-    summary.ground_truth_file = capture::RecordingSidecars::of(options.out).ground_truth;
-    writeTumTrajectory(summary.ground_truth_file, *ground_truth);
   }
 
   std::printf("recording     %s\n", options.out.string().c_str());

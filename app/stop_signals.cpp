@@ -25,4 +25,6 @@ StopSignals::~StopSignals() {
 
 const std::atomic<bool>& StopSignals::flag() { return g_stop; }
 
+void StopSignals::clear() { g_stop.store(false); }
+
 }  // namespace objscan::app

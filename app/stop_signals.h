@@ -18,6 +18,9 @@ class StopSignals {
   /// Set by the handler; an atomic that library calls (capture::recordSession) can poll.
   static const std::atomic<bool>& flag();
   static bool stopRequested() { return flag().load(); }
+  /// Forgets a stop already requested: `objscan scan` on a sensor takes the first Ctrl-C as the
+  /// end of capture and goes on, so only a later one stops the run.
+  static void clear();
 
  private:
   struct sigaction old_int_ {};

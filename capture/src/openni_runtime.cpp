@@ -90,9 +90,9 @@ void openDevice(openni::Device& device, const std::string& uri) {
   ensureOpenNI();
   if (uri.empty()) {
     if (listSensorsInternal().empty()) {
-      throw std::runtime_error(
+      throw NoSensorError(
           "no sensor found: connect an OpenNI2 sensor (Asus Xtion, PrimeSense Carmine, Kinect v1) "
-          "or name one with --device (objscan devices lists them)");
+          "or name one by its URI (objscan devices lists them; virtual:<folder> needs none)");
     }
     if (device.open(openni::ANY_DEVICE) != openni::STATUS_OK) {
       std::string message = "cannot open the first sensor: ";
@@ -217,6 +217,19 @@ std::optional<VirtualDeviceFacts> virtualDeviceFacts(openni::Device& device) {
   facts.frame_count = static_cast<std::size_t>(std::max(frames, 0));
   facts.description = description;
   return facts;
+}
+
+LiveSensorFacts liveSensorFacts(openni::Device& device, openni::VideoStream& depth) {
+  LiveSensorFacts live;
+  if (const auto facts = virtualDeviceFacts(device)) {
+    live.intrinsics = facts->intrinsics;
+    live.intrinsics_origin = "the virtual sensor's source";
+    live.time_offset_s = facts->time_offset_s;
+    live.frame_count = facts->frame_count;
+  } else {
+    live.intrinsics = intrinsicsFromStream(depth, &live.intrinsics_origin);
+  }
+  return live;
 }
 
 cv::Mat depthToMetres(const openni::VideoFrameRef& frame) {

@@ -22,8 +22,8 @@ std::string lastError();
 
 std::vector<SensorDescription> listSensorsInternal();
 
-/// Opens `uri` (empty: the first sensor). Throws std::runtime_error when no sensor is attached,
-/// InputError when `uri` cannot be opened.
+/// Opens `uri` (empty: the first sensor). Throws NoSensorError when no sensor is attached,
+/// InputError when `uri` cannot be opened, std::runtime_error when the first sensor cannot.
 void openDevice(openni::Device& device, const std::string& uri);
 
 /// Creates depth (required) and colour (when the device has it) streams at 640x480@30 where
@@ -48,6 +48,16 @@ struct VirtualDeviceFacts {
   std::string description;
 };
 std::optional<VirtualDeviceFacts> virtualDeviceFacts(openni::Device& device);
+
+/// What an opened live sensor says about its depth images: the virtual sensor's own facts, else
+/// intrinsicsFromStream().
+struct LiveSensorFacts {
+  Intrinsics intrinsics;
+  std::string intrinsics_origin;
+  double time_offset_s = 0.0;              ///< adds back to OpenNI2's stamps: the source's clock
+  std::optional<std::size_t> frame_count;  ///< frames a virtual sensor's source holds
+};
+LiveSensorFacts liveSensorFacts(openni::Device& device, openni::VideoStream& depth);
 
 /// OpenNI2 reported this device as disconnected since it was opened.
 bool wasDisconnected(const std::string& uri);

@@ -26,10 +26,7 @@ using testing::expectOneErrorLine;
 using testing::ProcessResult;
 using testing::TempDir;
 
-ProcessResult objscan(std::vector<std::string> args) {
-  args.insert(args.begin(), OBJSCAN_EXE);
-  return testing::runProcess(args);
-}
+using testing::objscan;
 
 /// A 320x240, 12-frame synthetic desk recording (TUM layout) under `dir`.
 fs::path syntheticRecording(const TempDir& dir) {

@@ -3,13 +3,17 @@
 
 #include <OpenNI.h>
 #include <gtest/gtest.h>
+#include <unistd.h>
 
+#include <atomic>
 #include <chrono>
 #include <csignal>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -231,6 +235,201 @@ TEST_F(OpenNI, LiveVirtualSensorDeliversEveryFrameInOrder) {
   EXPECT_TRUE(live->info().live);
   EXPECT_EQ(live->info().frame_count, std::optional<std::size_t>(kFolderFrames));
   expectSameFrames(folderFrames(), readAll(*live), kFolderFrames);
+  // Opened without a recording, it records nothing.
+  EXPECT_EQ(dynamic_cast<RecordingFrameSource*>(live.get()), nullptr);
+  EXPECT_FALSE(finishRecording(*live, "done").has_value());
+}
+
+/// Every frame next() `returned` is in the `replayed` recording, bit for bit (depth in float
+/// metres, colour, time stamp), in the same order; frames are matched by time stamp, so the
+/// recording may hold frames the reader never saw.
+void expectRecordedAsReturned(const std::vector<RgbdFrame>& returned,
+                              const std::vector<RgbdFrame>& replayed) {
+  std::size_t j = 0;
+  for (const RgbdFrame& frame : returned) {
+    SCOPED_TRACE("frame " + std::to_string(frame.index) + " that next() returned");
+    while (j < replayed.size() && replayed[j].stamp_s < frame.stamp_s - 1e-6) ++j;
+    ASSERT_LT(j, replayed.size()) << "not in the recording";
+    const RgbdFrame& got = replayed[j];
+    EXPECT_NEAR(got.stamp_s, frame.stamp_s, 1e-6);
+    ASSERT_EQ(got.depth_m.size(), frame.depth_m.size());
+    ASSERT_EQ(got.depth_m.type(), frame.depth_m.type());
+    EXPECT_EQ(std::memcmp(got.depth_m.data, frame.depth_m.data,
+                          frame.depth_m.total() * frame.depth_m.elemSize()),
+              0);
+    EXPECT_TRUE(sameImage(frame.color_rgb, got.color_rgb));
+    ++j;
+  }
+}
+
+TEST_F(OpenNI, LiveRecordingHoldsEveryFrameNextReturnedBitForBit) {
+  const fs::path oni = out_.path() / "live.oni";
+  LiveRecording record;
+  record.out = oni;
+  record.ground_truth = openFolderSource(folder())->info().ground_truth;
+  std::vector<RgbdFrame> returned;
+  RecordSummary summary;
+  {
+    auto live = openSensor("virtual:" + folder().string() + "?fps=60", {}, {}, record);
+    ASSERT_NE(dynamic_cast<RecordingFrameSource*>(live.get()), nullptr);
+    returned = readAll(*live);
+    const std::optional<RecordSummary> finished = finishRecording(*live, "finished by the test");
+    ASSERT_TRUE(finished.has_value());
+    summary = *finished;
+    // Finishing twice gives the same summary; the stream has ended.
+    EXPECT_EQ(finishRecording(*live, "again")->stop_reason, summary.stop_reason);
+    EXPECT_EQ(live->next().status, FrameStatus::kEndOfStream);
+  }
+  ASSERT_EQ(returned.size(), kFolderFrames);
+  EXPECT_EQ(summary.depth_frames, kFolderFrames);
+  EXPECT_EQ(summary.color_frames, kFolderFrames);
+  EXPECT_EQ(summary.dropped, 0u);
+  EXPECT_FALSE(summary.failed);
+  // The source ended by itself before the caller finished: that is the reason given.
+  EXPECT_EQ(summary.stop_reason, "end of the virtual sensor's source");
+  EXPECT_EQ(summary.info_file, RecordingSidecars::of(oni).info);
+  EXPECT_EQ(summary.ground_truth_file, RecordingSidecars::of(oni).ground_truth);
+  EXPECT_TRUE(fs::exists(summary.info_file));
+  EXPECT_TRUE(fs::exists(summary.ground_truth_file));
+  EXPECT_EQ(objscan::testing::entryCount(out_.path()), 3u);  // no partial file left
+  EXPECT_EQ(inspectOniFile(oni).records_end, fs::file_size(oni));
+
+  auto replay = openOniFile(oni);
+  EXPECT_EQ(replay->info().intrinsics.fx_px, smallCamera().fx_px);  // from live.oni.json
+  ASSERT_TRUE(replay->info().ground_truth.has_value());
+  EXPECT_EQ(replay->info().ground_truth->size(), kFolderFrames);
+  const std::vector<RgbdFrame> replayed = readAll(*replay);
+  ASSERT_EQ(replayed.size(), returned.size());
+  expectRecordedAsReturned(returned, replayed);
+  expectSameFrames(folderFrames(), replayed, kFolderFrames);
+}
+
+TEST_F(OpenNI, LiveRecordingFinishedEarlyKeepsEveryFrameReadBeforeIt) {
+  const std::string spec = "synth:4,objects=2,frames=6";
+  const fs::path oni = out_.path() / "early.oni";
+  LiveRecording record;
+  record.out = oni;
+  record.compress_color = true;
+  auto live = openSensor("virtual:" + spec, {}, {}, record);
+  std::vector<RgbdFrame> returned;
+  for (int k = 0; k < 3; ++k) {
+    FrameResult r = live->next();
+    ASSERT_EQ(r.status, FrameStatus::kOk) << r.reason;
+    returned.push_back(std::move(r.frame));
+  }
+  const RecordSummary summary = *finishRecording(*live, "frame limit");
+  EXPECT_EQ(summary.stop_reason, "frame limit");
+  EXPECT_FALSE(summary.failed);
+  // Frames that arrived after the third, before the caller finished, are in the file too.
+  EXPECT_GE(summary.depth_frames, 3u);
+  EXPECT_LE(summary.depth_frames, 6u);
+  EXPECT_TRUE(summary.ground_truth_file.empty());
+  EXPECT_EQ(live->next().status, FrameStatus::kEndOfStream);
+  live.reset();
+
+  auto replay = openOniFile(oni);
+  EXPECT_EQ(replay->info().intrinsics.width_px, 640);
+  std::vector<RgbdFrame> replayed = readAll(*replay);
+  EXPECT_EQ(replayed.size(), summary.depth_frames);
+  // JPEG colour is lossy: compare depth only.
+  for (RgbdFrame& f : returned) f.color_rgb = cv::Mat();
+  for (RgbdFrame& f : replayed) f.color_rgb = cv::Mat();
+  expectRecordedAsReturned(returned, replayed);
+}
+
+TEST_F(OpenNI, LiveRecordingDestroyedWithoutFinishingStillReplays) {
+  const fs::path oni = out_.path() / "dropped.oni";
+  LiveRecording record;
+  record.out = oni;
+  std::vector<RgbdFrame> returned;
+  {
+    auto live = openSensor("virtual:" + folder().string() + "?fps=60", {}, {}, record);
+    for (int k = 0; k < 5; ++k) {
+      FrameResult r = live->next();
+      ASSERT_EQ(r.status, FrameStatus::kOk) << r.reason;
+      returned.push_back(std::move(r.frame));
+    }
+  }  // no finishRecording: the destructor finishes the file
+  EXPECT_TRUE(fs::exists(RecordingSidecars::of(oni).info));
+  EXPECT_NE(
+      objscan::testing::readBytes(RecordingSidecars::of(oni).info).find("closed without finishing"),
+      std::string::npos);
+  EXPECT_EQ(objscan::testing::entryCount(out_.path()), 2u);  // no partial file left
+  auto replay = openOniFile(oni);
+  const std::vector<RgbdFrame> replayed = readAll(*replay);
+  EXPECT_GE(replayed.size(), 5u);
+  expectRecordedAsReturned(returned, replayed);
+  expectSameFrames(folderFrames(), replayed, replayed.size(), /*last_may_lack_colour=*/true);
+}
+
+TEST_F(OpenNI, UnpluggedSensorEndsTheLiveStreamAndLeavesAReplayableRecording) {
+  const fs::path oni = out_.path() / "unplugged_live.oni";
+  LiveRecording record;
+  record.out = oni;
+  auto live = openSensor("virtual:" + folder().string() + "?fps=60&unplug_after=7", {}, {}, record);
+  const std::vector<RgbdFrame> returned = readAll(*live);
+  EXPECT_EQ(returned.size(), 7u);
+  const RecordSummary summary = *finishRecording(*live, "finished by the test");
+  EXPECT_TRUE(summary.failed);
+  EXPECT_NE(summary.stop_reason.find("unplugged"), std::string::npos) << summary.stop_reason;
+  EXPECT_EQ(summary.depth_frames, 7u);
+  live.reset();
+  auto replay = openOniFile(oni);
+  const std::vector<RgbdFrame> replayed = readAll(*replay);
+  expectRecordedAsReturned(returned, replayed);
+  expectSameFrames(folderFrames(), replayed, 7);
+}
+
+TEST_F(OpenNI, NearlyFullDiskEndsTheLiveStreamAndLeavesAReplayableRecording) {
+  const fs::path oni = out_.path() / "full_live.oni";
+  LiveRecording record;
+  record.out = oni;
+  std::vector<RgbdFrame> returned;
+  RecordSummary summary;
+  {
+    // As NearlyFullDiskStopsTheRecordingWithAReplayableFile: a 5.5 MB cap leaves room for a few
+    // 160x120 frames beyond the 4.8 MB margin.
+    objscan::testing::FileSizeLimit limit(5'500'000);
+    auto live = openSensor("virtual:" + folder().string() + "?fps=200", {}, {}, record);
+    returned = readAll(*live);  // ends early: the recording had to stop
+    summary = *finishRecording(*live, "finished by the test");
+  }
+  EXPECT_LT(returned.size(), kFolderFrames);
+  EXPECT_TRUE(summary.failed);
+  EXPECT_NE(summary.stop_reason.find("disk is nearly full"), std::string::npos)
+      << summary.stop_reason;
+  auto replay = openOniFile(oni);
+  const std::vector<RgbdFrame> replayed = readAll(*replay);
+  EXPECT_GE(replayed.size(), 1u);
+  EXPECT_LT(replayed.size(), kFolderFrames);
+  EXPECT_EQ(replayed.size(), summary.depth_frames);
+  expectSameFrames(folderFrames(), replayed, replayed.size(), /*last_may_lack_colour=*/true);
+}
+
+TEST_F(OpenNI, LiveRecordingToAnUnwritableFolderFailsBeforeTheSensorOpens) {
+  const fs::path read_only = out_.path() / "read_only";
+  fs::create_directory(read_only);
+  fs::permissions(read_only, fs::perms::owner_read | fs::perms::owner_exec);
+  // Root writes where permissions say no; sysfs takes no new files, even from root.
+  const fs::path unwritable = ::access(read_only.c_str(), W_OK) == 0 ? "/sys" : read_only;
+  const fs::path missing_sensor = out_.path() / "no_such_folder";
+  for (const fs::path& out : {unwritable / "x.oni", out_.path() / "missing" / "x.oni"}) {
+    SCOPED_TRACE(out.string());
+    LiveRecording record;
+    record.out = out;
+    // The device names a missing folder: an OutputError, not that InputError, shows that the
+    // output was checked before the sensor was opened.
+    try {
+      openSensor("virtual:" + missing_sensor.string(), {}, {}, record);
+      ADD_FAILURE() << "no error";
+    } catch (const OutputError& e) {
+      EXPECT_EQ(std::string(e.what()).rfind(out.string() + ": ", 0), 0u) << e.what();
+    }
+    EXPECT_THROW(openSensor("virtual:" + folder().string(), {}, {}, record), OutputError);
+    EXPECT_FALSE(fs::exists(out));
+  }
+  fs::permissions(read_only, fs::perms::owner_all);
+  EXPECT_EQ(objscan::testing::entryCount(read_only), 0u);
 }
 
 TEST_F(OpenNI, DevicesListsTheAnnouncedVirtualSensor) {
@@ -249,26 +448,65 @@ TEST_F(OpenNI, DevicesListsTheAnnouncedVirtualSensor) {
   EXPECT_EQ(openOniFile(oni)->info().frame_count, std::optional<std::size_t>(5));
 }
 
-TEST_F(OpenNI, NoSensorAttachedIsOneClearError) {
-  // A private OpenNI2 runtime with only the file driver: no driver that could find a sensor,
-  // whatever is plugged into this machine.
-  const fs::path runtime = out_.path() / "runtime";
-  fs::create_directories(runtime / "OpenNI2" / "Drivers");
+/// Environment for a child process whose OpenNI2 runtime (in `dir`) has only the file driver: no
+/// driver that could find a sensor, whatever is plugged into this machine.
+ProcessOptions withoutSensorDrivers(const fs::path& dir) {
+  fs::create_directories(dir / "OpenNI2" / "Drivers");
   const fs::path real = fs::read_symlink(fs::path(OBJSCAN_OPENNI2_RUNTIME_DIR) / "libOpenNI2.so.0");
-  fs::create_symlink(real, runtime / "libOpenNI2.so.0");
+  fs::create_symlink(real, dir / "libOpenNI2.so.0");
   fs::create_symlink(fs::read_symlink(fs::path(OBJSCAN_OPENNI2_RUNTIME_DIR) / "OpenNI2" /
                                       "Drivers" / "libOniFile.so.0"),
-                     runtime / "OpenNI2" / "Drivers" / "libOniFile.so.0");
+                     dir / "OpenNI2" / "Drivers" / "libOniFile.so.0");
   ProcessOptions options;
-  options.env = {"LD_LIBRARY_PATH=" + runtime.string()};
+  options.env = {"LD_LIBRARY_PATH=" + dir.string()};
+  return options;
+}
+
+TEST_F(OpenNI, NoSensorAttachedIsOneClearErrorWithExitCode3) {
+  const ProcessOptions options = withoutSensorDrivers(out_.path() / "runtime");
   const fs::path oni = out_.path() / "none.oni";
   const ProcessResult r =
       runProcess({OBJSCAN_EXE, "record", "--out", oni.string(), "--frames", "5"}, options);
-  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.exit_code, 3);
   EXPECT_EQ(objscan::testing::lines(r.err).size(), 1u) << r.err;  // nothing but the error
   EXPECT_NE(r.err.find("no sensor found"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(oni));
   EXPECT_EQ(objscan::testing::entryCount(out_.path()), 1u);  // only runtime/: no partial file left
+}
+
+constexpr char kNoSensorChild[] = "OBJSCAN_TEST_NO_SENSOR_DRIVERS";
+
+TEST_F(OpenNI, OpeningTheFirstSensorWithNoneAttachedThrowsNoSensorError) {
+  if (std::getenv(kNoSensorChild) == nullptr) {
+    // OpenNI2 lists the virtual sensors other tests opened in this process, and a real sensor
+    // may be plugged in: run this test again, alone, in a child whose runtime has no sensor
+    // driver.
+    ProcessOptions options = withoutSensorDrivers(out_.path() / "runtime");
+    options.env.push_back(std::string(kNoSensorChild) + "=1");
+    const ::testing::TestInfo* test = ::testing::UnitTest::GetInstance()->current_test_info();
+    const ProcessResult r =
+        runProcess({fs::read_symlink("/proc/self/exe").string(),
+                    std::string("--gtest_filter=") + test->test_suite_name() + "." + test->name()},
+                   options);
+    EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
+    EXPECT_NE(r.out.find("[  PASSED  ] 1 test."), std::string::npos) << r.out;
+    return;
+  }
+  ASSERT_TRUE(listSensors().empty());
+  try {
+    openSensor("");
+    ADD_FAILURE() << "no error";
+  } catch (const NoSensorError& e) {
+    EXPECT_NE(std::string(e.what()).find("no sensor found"), std::string::npos) << e.what();
+  }
+  LiveRecording live;
+  live.out = out_.path() / "live.oni";
+  EXPECT_THROW(openSensor("", {}, {}, live), NoSensorError);
+  RecordOptions record;
+  record.out = out_.path() / "record.oni";
+  const std::atomic<bool> stop{false};
+  EXPECT_THROW(recordSession(record, stop), NoSensorError);
+  EXPECT_EQ(objscan::testing::entryCount(out_.path()), 0u);  // no partial file left
 }
 
 TEST_F(OpenNI, UnpluggedSensorEndsTheRecordingWithAClearErrorAndAReplayableFile) {

@@ -4,10 +4,17 @@
 #include <gtest/gtest.h>
 
 #include <string>
+#include <vector>
 
 #include "test_support.h"
 
 namespace objscan::testing {
+
+/// Runs the objscan binary under test (OBJSCAN_EXE, defined for every test program) with `args`.
+inline ProcessResult objscan(std::vector<std::string> args) {
+  args.insert(args.begin(), OBJSCAN_EXE);
+  return runProcess(args);
+}
 
 /// One line on stderr starting "objscan: error: " and holding `needle`; nothing on stdout; exit
 /// status `code`.

@@ -29,4 +29,12 @@ class OutputError : public std::runtime_error {
       : std::runtime_error(path.string() + ": " + problem) {}
 };
 
+/// Live capture was asked of "the first sensor", but OpenNI2 finds none attached. The message says
+/// what to connect or name instead. The command line maps it to exit code 3 (no sensor).
+/// A device URI that names no device is an InputError instead.
+class NoSensorError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 }  // namespace objscan

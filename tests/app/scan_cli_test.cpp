@@ -1,0 +1,364 @@
+// `objscan scan` and `objscan render` end to end on a synthetic scene with ground truth: every
+// output is there and readable, the overview paints exactly the top hypotheses of
+// hypotheses.json, and those are the ground-truth objects the evaluation says; bad input gives one
+// error line and the documented exit code.
+
+#include <gtest/gtest.h>
+
+#include <csignal>
+
+#include <filesystem>
+#include <map>
+#include <set>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "cli_expect.h"
+#include "objscan/core/atomic_file.h"
+#include "objscan/core/ply_io.h"
+#include "objscan/core/trajectory.h"
+#include "objscan/render/offscreen_renderer.h"
+#include "test_support.h"
+
+namespace objscan {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::expectOneErrorLine;
+using testing::ProcessResult;
+using testing::TempDir;
+
+using testing::objscan;
+
+nlohmann::json readJson(const fs::path& file) { return nlohmann::json::parse(readWholeFile(file)); }
+
+/// The overview's camera as render wrote it.
+struct Camera {
+  Pose T_W_C = Pose::Identity();
+  Intrinsics intrinsics;
+};
+
+Camera readCamera(const fs::path& file) {
+  const nlohmann::json j = readJson(file);
+  Camera c;
+  Eigen::Matrix4f T;
+  for (int r = 0; r < 4; ++r) {
+    for (int k = 0; k < 4; ++k) T(r, k) = j.at("T_W_C").at(r).at(k).get<float>();
+  }
+  c.T_W_C.matrix() = T;
+  const nlohmann::json& in = j.at("intrinsics");
+  c.intrinsics.fx_px = in.at("fx").get<double>();
+  c.intrinsics.fy_px = in.at("fy").get<double>();
+  c.intrinsics.cx_px = in.at("cx").get<double>();
+  c.intrinsics.cy_px = in.at("cy").get<double>();
+  c.intrinsics.width_px = in.at("width").get<int>();
+  c.intrinsics.height_px = in.at("height").get<int>();
+  return c;
+}
+
+/// Renders `mesh` with `labels` from the camera and returns the label image.
+cv::Mat renderLabels(TriangleMesh mesh, std::vector<std::int32_t> labels, const Camera& camera) {
+  mesh.labels = std::move(labels);
+  mesh.colors.clear();
+  render::OffscreenRenderer renderer(camera.intrinsics, 0.005f, 200.0f);
+  renderer.setMesh(mesh);
+  return renderer.render(camera.T_W_C).label;
+}
+
+/// One scan of a synthetic desk (with ground truth beside it), shared by the tests that only read
+/// its outputs.
+class ScanCli : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new TempDir;
+    scene_ = *dir_ / "desk";
+    const ProcessResult synth = objscan(
+        {"synth", "--out", scene_.string(), "--frames", "30", "--objects", "6", "--seed", "11"});
+    ASSERT_EQ(synth.exit_code, 0) << synth.err;
+    out_ = *dir_ / "scan";
+    scan_ =
+        objscan({"scan", scene_.string(), "--out", out_.string(), "--no-catalog", "--ranks-image"});
+  }
+  static void TearDownTestSuite() {
+    delete dir_;
+    dir_ = nullptr;
+  }
+
+  static TempDir* dir_;
+  static fs::path scene_, out_;
+  static ProcessResult scan_;
+};
+
+TempDir* ScanCli::dir_ = nullptr;
+fs::path ScanCli::scene_, ScanCli::out_;
+ProcessResult ScanCli::scan_;
+
+TEST_F(ScanCli, WritesEveryOutputAndEndsWithTheReportsPath) {
+  ASSERT_EQ(scan_.exit_code, 0) << scan_.err;
+  const std::vector<std::string> out_lines = testing::lines(scan_.out);
+  ASSERT_FALSE(out_lines.empty());
+  EXPECT_EQ(out_lines.back(), "report        " + (out_ / "report.html").string());
+  EXPECT_NE(scan_.out.find("30 read, 30 fused"), std::string::npos) << scan_.out;
+  EXPECT_NE(scan_.err.find("scan [1/4] fusing frames"), std::string::npos) << scan_.err;
+
+  EXPECT_GT(readPly(out_ / "mesh.ply").triangles.size(), 10000u);
+  EXPECT_EQ(readTumTrajectory(out_ / "trajectory.txt").size(), 30u);
+  const nlohmann::json hypotheses = readJson(out_ / "hypotheses.json");
+  const std::size_t n = hypotheses.at("hypotheses").size();
+  ASSERT_GE(n, 5u);
+  for (std::size_t rank = 1; rank <= n; ++rank) {
+    char name[32];
+    std::snprintf(name, sizeof name, "rank_%03zu", rank);
+    EXPECT_TRUE(fs::is_regular_file(out_ / "objects" / (std::string(name) + ".ply"))) << name;
+    // Close-ups of the top 5 only.
+    EXPECT_EQ(fs::exists(out_ / "renders" / (std::string(name) + ".png")), rank <= 5) << name;
+  }
+  const cv::Mat overview = cv::imread((out_ / "renders" / "overview.png").string());
+  EXPECT_EQ(overview.size(), cv::Size(1280, 960));
+  const cv::Mat close = cv::imread((out_ / "renders" / "rank_001.png").string());
+  EXPECT_EQ(close.size(), cv::Size(480, 360));
+  EXPECT_FALSE(cv::imread((out_ / "renders" / "contact_sheet.png").string()).empty());
+  EXPECT_TRUE(fs::is_regular_file(out_ / "report.html"));
+
+  const nlohmann::json timings = readJson(out_ / "timings.json");
+  std::vector<std::string> stages;
+  for (const auto& s : timings.at("stages")) {
+    stages.push_back(s.at("name"));
+    EXPECT_GE(s.at("seconds").get<double>(), 0.0);
+  }
+  EXPECT_EQ(stages, (std::vector<std::string>{"fuse", "mesh", "discover", "evaluation", "render",
+                                              "report"}));
+  EXPECT_FALSE(timings.at("interrupted").get<bool>());
+  EXPECT_EQ(timings.at("frames").at("fused").get<int>(), 30);
+  EXPECT_EQ(timings.at("hypotheses").get<std::size_t>(), n);
+  // No temporary or staging files are left behind.
+  for (const auto& entry : fs::directory_iterator(out_)) {
+    const std::string name = entry.path().filename().string();
+    EXPECT_EQ(name.find("partial"), std::string::npos) << name;
+    EXPECT_EQ(name.find(".tmp"), std::string::npos) << name;
+  }
+}
+
+TEST_F(ScanCli, OverviewPaintsExactlyTheTopFiveOfHypothesesJson) {
+  ASSERT_EQ(scan_.exit_code, 0) << scan_.err;
+  // Render ranks again, independently of the renderer's painting: each vertex of the scene mesh
+  // labelled with the best rank of the top-5 hypotheses in hypotheses.json that holds it.
+  const TriangleMesh mesh = readPly(out_ / "mesh.ply");
+  const nlohmann::json doc = readJson(out_ / "hypotheses.json");
+  std::vector<std::int32_t> ranks(mesh.positions.size(), 0);
+  for (int k = 4; k >= 0; --k) {
+    for (std::int32_t v : doc.at("hypotheses").at(k).at("vertices")) ranks[v] = k + 1;
+  }
+  const Camera camera = readCamera(out_ / "renders" / "overview_camera.json");
+  const cv::Mat expected = renderLabels(mesh, ranks, camera);
+  const cv::Mat painted =
+      cv::imread((out_ / "renders" / "overview_ranks.png").string(), cv::IMREAD_UNCHANGED);
+  ASSERT_EQ(painted.type(), CV_16UC1);
+  ASSERT_EQ(painted.size(), expected.size());
+  cv::Mat painted32;
+  painted.convertTo(painted32, CV_32S);
+  const int differing = cv::countNonZero(painted32 != expected);
+  EXPECT_EQ(differing, 0);
+  std::set<int> seen;
+  for (int y = 0; y < painted32.rows; ++y) {
+    for (int x = 0; x < painted32.cols; ++x) seen.insert(painted32.at<std::int32_t>(y, x));
+  }
+  seen.erase(0);
+  // From where the sensor looked, all five show (the trajectory view frames them all).
+  EXPECT_EQ(seen, (std::set<int>{1, 2, 3, 4, 5}));
+  EXPECT_NE(scan_.out.find("visible: #1, #2, #3, #4, #5"), std::string::npos) << scan_.out;
+}
+
+TEST_F(ScanCli, PaintedHypothesesShowTheGroundTruthObjectsTheEvaluationNames) {
+  ASSERT_EQ(scan_.exit_code, 0) << scan_.err;
+  const nlohmann::json evaluation = readJson(out_ / "evaluation.json");
+  EXPECT_EQ(evaluation.at("ground_truth").get<std::string>(), (scene_ / "scene_gt.ply").string());
+  EXPECT_EQ(evaluation.at("objects").get<int>(), 6);
+  // The ground truth's object ids rendered from the overview's camera: under each painted rank
+  // that found an object, most pixels show that object.
+  const TriangleMesh truth = readPly(scene_ / "scene_gt.ply");
+  const Camera camera = readCamera(out_ / "renders" / "overview_camera.json");
+  const cv::Mat truth_ids = renderLabels(truth, truth.labels, camera);
+  const cv::Mat painted =
+      cv::imread((out_ / "renders" / "overview_ranks.png").string(), cv::IMREAD_UNCHANGED);
+  int checked = 0;
+  for (int rank = 1; rank <= 5; ++rank) {
+    const nlohmann::json& match = evaluation.at("hypotheses").at(rank - 1);
+    ASSERT_EQ(match.at("rank").get<int>(), rank);
+    if (match.at("iou").get<double>() < 0.5) continue;
+    std::map<int, int> votes;
+    for (int y = 0; y < painted.rows; ++y) {
+      for (int x = 0; x < painted.cols; ++x) {
+        if (painted.at<std::uint16_t>(y, x) == rank) ++votes[truth_ids.at<std::int32_t>(y, x)];
+      }
+    }
+    int best = -1, best_votes = -1, total = 0;
+    for (const auto& [id, count] : votes) {
+      total += count;
+      if (count > best_votes) {
+        best = id;
+        best_votes = count;
+      }
+    }
+    EXPECT_EQ(best, match.at("object_id").get<int>()) << "rank " << rank;
+    EXPECT_GT(best_votes, 0.7 * total) << "rank " << rank;
+    ++checked;
+  }
+  EXPECT_GE(checked, 3);
+  const double ap = evaluation.at("ap").get<double>();
+  EXPECT_GT(ap, 0.3);
+  EXPECT_LE(ap, 1.0);
+}
+
+TEST_F(ScanCli, RenderAgainReplacesTheRendersWithTheNewOptions) {
+  ASSERT_EQ(scan_.exit_code, 0) << scan_.err;
+  const fs::path copy = *dir_ / "render_again";
+  fs::copy(out_, copy, fs::copy_options::recursive);
+  const ProcessResult r = objscan(
+      {"render", copy.string(), "--top", "3", "--size", "640x480", "--view", "three-quarter"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::set<std::string> files;
+  for (const auto& e : fs::directory_iterator(copy / "renders")) {
+    files.insert(e.path().filename().string());
+  }
+  EXPECT_EQ(files, (std::set<std::string>{"overview.png", "overview_camera.json", "rank_001.png",
+                                          "rank_002.png", "rank_003.png", "contact_sheet.png"}));
+  EXPECT_EQ(cv::imread((copy / "renders" / "overview.png").string()).size(), cv::Size(640, 480));
+  EXPECT_EQ(readJson(copy / "renders" / "overview_camera.json").at("view"), "three-quarter");
+  EXPECT_NE(r.out.find("report        " + (copy / "report.html").string()), std::string::npos)
+      << r.out;
+}
+
+TEST_F(ScanCli, RenderNamesWhatIsMissing) {
+  ASSERT_EQ(scan_.exit_code, 0) << scan_.err;
+  const fs::path missing = *dir_ / "nothing_here";
+  expectOneErrorLine(objscan({"render", missing.string()}), 2, missing.string() + ": missing");
+
+  const fs::path empty = *dir_ / "empty_results";
+  fs::create_directories(empty);
+  expectOneErrorLine(objscan({"render", empty.string()}), 2,
+                     (empty / "hypotheses.json").string() + ": missing");
+
+  // hypotheses.json without its mesh (and the mesh it names gone too).
+  const fs::path no_mesh = *dir_ / "no_mesh";
+  fs::create_directories(no_mesh);
+  nlohmann::json doc = readJson(out_ / "hypotheses.json");
+  doc["scenes"][0]["mesh"] = (no_mesh / "gone.ply").string();
+  for (auto& h : doc["hypotheses"]) h["scene"] = (no_mesh / "gone.ply").string();
+  writeFileAtomically(no_mesh / "hypotheses.json", doc.dump());
+  expectOneErrorLine(objscan({"render", no_mesh.string()}), 2,
+                     (no_mesh / "mesh.ply").string() + ": missing");
+
+  // A mesh that is not the one the hypotheses were found in.
+  writePly(no_mesh / "mesh.ply", testing::makeCube());
+  expectOneErrorLine(objscan({"render", no_mesh.string()}), 2,
+                     (no_mesh / "mesh.ply").string() + ": has 8 vertices");
+
+  // Truncated JSON.
+  writeFileAtomically(no_mesh / "hypotheses.json", doc.dump().substr(0, 100));
+  expectOneErrorLine(objscan({"render", no_mesh.string()}), 2,
+                     (no_mesh / "hypotheses.json").string() + ": not the JSON objscan writes");
+  EXPECT_FALSE(fs::exists(no_mesh / "renders"));
+  expectOneErrorLine(objscan({"render", out_.string(), "--size", "640-480"}), 2, "--size");
+}
+
+TEST(ScanCliErrors, AnOutputFolderThatCannotBeWrittenFailsBeforeFusing) {
+  TempDir dir;
+  fs::path read_only = dir / "read_only";
+  fs::create_directory(read_only);
+  fs::permissions(read_only, fs::perms::owner_read | fs::perms::owner_exec);
+  // Root writes anywhere permissions say no; sysfs takes no new files, even from root.
+  if (::access(read_only.c_str(), W_OK) == 0) read_only = "/sys";
+  const ProcessResult r = objscan({"scan", "synth:3,frames=5", "--out", read_only.string()});
+  expectOneErrorLine(r, 1, read_only.string() + ": cannot write into the output folder");
+  EXPECT_EQ(r.err.find("fusing"), std::string::npos) << r.err;
+
+  testing::writeBytes(dir / "a_file", "x");
+  expectOneErrorLine(objscan({"scan", "synth:3,frames=5", "--out", (dir / "a_file").string()}), 1,
+                     (dir / "a_file").string());
+  fs::permissions(dir / "read_only", fs::perms::owner_all);
+}
+
+TEST(ScanCliErrors, MissingSourceIsBadInput) {
+  TempDir dir;
+  const fs::path missing = dir / "missing.oni";
+  expectOneErrorLine(objscan({"scan", missing.string(), "--out", (dir / "out").string()}), 2,
+                     missing.string());
+  expectOneErrorLine(objscan({"scan", "synth:3,frames=5", "--out", (dir / "out").string(),
+                              "--ground-truth", (dir / "gt.ply").string()}),
+                     2, (dir / "gt.ply").string() + ": missing");
+}
+
+TEST(ScanCliErrors, CtrlCWhileFusingKeepsTheMeshAndSaysWhatWasNotProduced) {
+  TempDir dir;
+  const fs::path out = dir / "out";
+  testing::ProcessOptions interrupt;
+  interrupt.signal = SIGINT;
+  interrupt.signal_when = "fusing frames:  10%";
+  const ProcessResult r = testing::runProcess({OBJSCAN_EXE, "scan", "synth:4,frames=200,objects=2",
+                                               "--out", out.string(), "--no-color", "--no-catalog"},
+                                              interrupt);
+  EXPECT_EQ(r.exit_code, 130) << r.err;
+  EXPECT_NE(r.out.find("not produced: hypotheses.json, objects/, renders/, report.html"),
+            std::string::npos)
+      << r.out;
+  const std::size_t fused = readTumTrajectory(out / "trajectory.txt").size();
+  EXPECT_GE(fused, 20u);
+  EXPECT_LT(fused, 200u);
+  EXPECT_GT(readPly(out / "mesh.ply").triangles.size(), 1000u);
+  const nlohmann::json timings = readJson(out / "timings.json");
+  EXPECT_TRUE(timings.at("interrupted").get<bool>());
+  EXPECT_EQ(timings.at("not_produced").size(), 4u);
+  for (const char* name : {"hypotheses.json", "objects", "renders", "report.html"}) {
+    EXPECT_FALSE(fs::exists(out / name)) << name;
+  }
+}
+
+}  // namespace
+}  // namespace objscan
+
+namespace objscan {
+namespace {
+
+TEST(ScanCliLive, VirtualSensorIsFusedAndRecordedAtOnce) {
+  TempDir dir;
+  const fs::path scene = dir / "scene";
+  ASSERT_EQ(
+      objscan({"synth", "--out", scene.string(), "--frames", "20", "--objects", "4", "--seed", "6"})
+          .exit_code,
+      0);
+  const fs::path out = dir / "out", oni = dir / "session.oni";
+  const ProcessResult r = objscan({"scan", "virtual:" + scene.string(), "--out", out.string(),
+                                   "--record", oni.string(), "--no-catalog"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(fs::is_regular_file(out / "report.html"));
+  EXPECT_TRUE(fs::is_regular_file(out / "renders" / "overview.png"));
+  // The recording replays, and holds at least every frame that was fused.
+  const std::size_t fused = readTumTrajectory(out / "trajectory.txt").size();
+  const ProcessResult info = objscan({"info", oni.string()});
+  ASSERT_EQ(info.exit_code, 0) << info.err;
+  std::size_t recorded = 0;
+  for (const std::string& line : testing::lines(info.out)) {
+    if (line.rfind("frames", 0) == 0) recorded = std::stoul(line.substr(6));
+  }
+  EXPECT_GE(recorded, fused);
+  EXPECT_LE(recorded, 20u);
+  EXPECT_NE(r.out.find("recording     "), std::string::npos) << r.out;
+}
+
+TEST(ScanCliLive, NoSensorAttachedIsExitCodeThree) {
+  TempDir dir;
+  expectOneErrorLine(objscan({"scan", "--out", (dir / "out").string()}), 3, "no sensor found");
+  // --record belongs to live sources only.
+  expectOneErrorLine(objscan({"scan", "synth:3,frames=5", "--out", (dir / "out").string(),
+                              "--record", (dir / "x.oni").string()}),
+                     2, "--record needs a live source");
+  EXPECT_FALSE(fs::exists(dir / "x.oni"));
+}
+
+}  // namespace
+}  // namespace objscan
