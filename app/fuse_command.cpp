@@ -80,6 +80,7 @@ FuseOutcome fuseSource(const FuseCommandOptions& options, const FuseLimits& limi
       if (StopSignals::stopRequested()) {
         out.interrupted = true;
         out.stopped_by = "Ctrl-C / SIGTERM";
+        if (limits.live_stop_ends_capture && info.live) StopSignals::clear();
         break;
       }
       if (limits.max_frames && read >= *limits.max_frames) {
@@ -142,11 +143,28 @@ FuseOutcome fuseSource(const FuseCommandOptions& options, const FuseLimits& limi
     }
   }
   out.fuse_s = std::chrono::duration<double>(Clock::now() - start).count();
+  if (out.interrupted && (!fusion || fusion->trajectory().empty())) {
+    std::string recorded;
+    try {  // a recording of the frames that came keeps them; with none, no file is left
+      if (const auto r = capture::finishRecording(*source, "interrupted")) {
+        recorded = "; the " + std::to_string(r->depth_frames) + " frames recorded are in " +
+                   options.record->out.string();
+      }
+    } catch (const std::runtime_error&) {
+    }
+    throw Interrupted("stopped by Ctrl-C / SIGTERM before a frame was fused: nothing was fused" +
+                      recorded);
+  }
   // The recording is closed (and renamed into place) before anything else can fail.
   out.recording = capture::finishRecording(*source, out.interrupted          ? "interrupted"
                                                     : out.stopped_by.empty() ? "end of source"
                                                                              : out.stopped_by);
   if (options.record) out.recording_file = options.record->out;
+  if (out.recording && out.recording->failed && out.sensor_lost.empty()) {
+    // An unplugged virtual sensor or a nearly full disk ends the stream without an exception.
+    out.sensor_lost =
+        out.recording_file.string() + ": recording stopped early: " + out.recording->stop_reason;
+  }
   if ((!fusion || fusion->trajectory().empty()) && !out.sensor_lost.empty()) {
     throw std::runtime_error(out.sensor_lost);
   }
@@ -164,6 +182,7 @@ FuseOutcome fuseSource(const FuseCommandOptions& options, const FuseLimits& limi
   if (mesh.triangles.empty()) {
     throw InputError(options.source, "the fused volume holds no surface to mesh");
   }
+  if (limits.before_writing) limits.before_writing();
   out.mesh_file = options.out / "mesh.ply";
   out.trajectory_file = options.out / "trajectory.txt";
   writePly(out.mesh_file, mesh);

@@ -2,6 +2,7 @@
 
 #include <cstddef>
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 
@@ -47,7 +48,8 @@ struct FuseOutcome {
   /// fused before it.
   bool interrupted = false;
   std::string stopped_by;  ///< "Ctrl-C / SIGTERM", "frame limit", "time limit"; empty at the end
-  /// A live sensor stopped delivering (unplugged): its error. The outputs hold what came before.
+  /// A live sensor stopped delivering (unplugged), or the recording stopped early (a lost sensor,
+  /// a nearly full disk): the error. The outputs hold what came before.
   std::string sensor_lost;
   std::optional<capture::RecordSummary> recording;  ///< with FuseCommandOptions::record
   std::filesystem::path recording_file;
@@ -58,6 +60,11 @@ struct FuseLimits {
   std::optional<std::size_t> max_frames;  ///< frames read (not fused) before stopping
   std::optional<double> max_seconds;      ///< wall time of reading before stopping
   std::string progress_label = "fusing frames";
+  /// Ctrl-C ends capture on a live source and is then forgotten (StopSignals::clear), so that only
+  /// a later one stops what follows (scan).
+  bool live_stop_ends_capture = false;
+  /// Called once the frames are fused, just before mesh.ply and trajectory.txt are written.
+  std::function<void()> before_writing;
 };
 
 /// Fuses options.source into OUT/mesh.ply and OUT/trajectory.txt. Polls StopSignals (the caller

@@ -19,6 +19,7 @@
 #include "record_command.h"
 #include "render_command.h"
 #include "scan_command.h"
+#include "stop_signals.h"
 #include "synth_command.h"
 
 namespace {
@@ -372,6 +373,9 @@ int main(int argc, char** argv) {
       return kExitRuntimeFailure;
     }
     return code;
+  } catch (const objscan::app::Interrupted& e) {
+    printError(e.what());
+    return kExitInterrupted;
   } catch (const objscan::InputError& e) {
     printError(e.what());
     return kExitBadInput;

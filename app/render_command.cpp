@@ -59,6 +59,17 @@ RankedResults readRankedResults(const fs::path& dir) {
       p.rank = h.at("rank").get<std::size_t>();
       p.score = h.at("score").get<double>();
       p.vertices = h.at("vertices").get<std::vector<std::int32_t>>();
+      if (p.rank == 0 || p.vertices.empty()) {
+        throw InputError(file, "hypothesis " + std::to_string(p.rank) + " has " +
+                                   (p.rank == 0 ? "rank 0" : "no vertices"));
+      }
+      for (std::int32_t v : p.vertices) {
+        if (v < 0 || static_cast<std::size_t>(v) >= out.mesh_vertices) {
+          throw InputError(file, "hypothesis " + std::to_string(p.rank) + " names vertex " +
+                                     std::to_string(v) + ", but its scene has " +
+                                     std::to_string(out.mesh_vertices) + " vertices");
+        }
+      }
       out.hypotheses.push_back(std::move(p));
     }
   } catch (const nlohmann::json::exception& e) {
@@ -137,8 +148,18 @@ RenderOutcome renderResults(const RenderCommandOptions& options) {
   out.renders = options.dir / "renders";
   out.painted = results.hypotheses.size();
   const fs::path partial = freshPartialFolder(options.dir, "renders");
+  // Whatever stops the pictures (an error, Ctrl-C), the staging folder goes: renders/ stays as
+  // it was.
+  struct RemoveUnlessSwapped {
+    fs::path path;
+    bool swapped = false;
+    ~RemoveUnlessSwapped() {
+      std::error_code ec;
+      if (!swapped) fs::remove_all(path, ec);
+    }
+  } staging{partial};
   {
-    ProgressBar progress("rendering pictures", out.painted + 2);
+    ProgressBar progress(options.progress_label, out.painted + 2);
     render::SnapshotRenderer renderer(mesh, results.hypotheses);
     const render::SnapshotView view =
         render::overviewView(mesh, trajectory ? &*trajectory : nullptr, results.hypotheses,
@@ -173,11 +194,9 @@ RenderOutcome renderResults(const RenderCommandOptions& options) {
       progress.advance();
     }
   }
-  if (out.interrupted) {
-    std::error_code ec;
-    fs::remove_all(partial, ec);
-  } else {
+  if (!out.interrupted) {
     swapInFolder(options.dir, "renders");
+    staging.swapped = true;
   }
   out.seconds = std::chrono::duration<double>(Clock::now() - start).count();
   return out;

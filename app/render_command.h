@@ -16,6 +16,7 @@ struct RenderCommandOptions {
   /// Also write renders/overview_ranks.png: 16-bit, each pixel the rank painted there (0: none),
   /// so that scripts and tests can check what the overview shows.
   bool ranks_image = false;
+  std::string progress_label = "rendering pictures";
 };
 
 /// What a render run wrote.

@@ -278,6 +278,7 @@ struct Match {
   std::optional<std::int64_t> object_id;
   std::optional<std::string> object;
   std::optional<double> iou;
+  std::optional<bool> found;  ///< this rank found the object (not a better rank before it)
 };
 
 struct Evaluation {
@@ -304,7 +305,10 @@ Evaluation readEvaluation(const fs::path& path) {
   }
   for (const Node& h : top.objects("hypotheses")) {
     const std::optional<std::int64_t> rank = h.integer("rank");
-    if (rank) e.by_rank[*rank] = {h.integer("object_id"), h.string("object"), h.number("iou")};
+    if (rank) {
+      e.by_rank[*rank] = {h.integer("object_id"), h.string("object"), h.number("iou"),
+                          h.boolean("found")};
+    }
   }
   return e;
 }
@@ -628,7 +632,8 @@ std::string groundTruthCell(const Evaluation& e, std::int64_t rank) {
   }
   const Match& m = it->second;
   const std::string name = m.object ? escape(*m.object) : "object " + integerText(*m.object_id);
-  const bool hit = m.iou && e.min_iou && *m.iou >= *e.min_iou;
+  // A rank that matched an object a better rank had found already counts as a miss.
+  const bool hit = m.found ? *m.found : (m.iou && e.min_iou && *m.iou >= *e.min_iou);
   return std::string("<td class=\"text gt ") + (hit ? "hit" : "miss") + "\">" + name +
          (m.iou ? " (IoU " + fixed(*m.iou, 2) + ")" : "") + "</td>";
 }

@@ -18,7 +18,9 @@
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/error.h"
 #include "objscan/core/log.h"
+#include "objscan/core/ply_io.h"
 #include "objscan/discovery/labels.h"
+#include "objscan/discovery/scoring.h"
 #include "output_folder.h"
 #include "report.h"
 #include "stop_signals.h"
@@ -59,6 +61,15 @@ fs::path findGroundTruth(const std::string& source) {
     candidate = p / "scene_gt.ply";
   }
   return !candidate.empty() && fs::is_regular_file(candidate, ec) ? candidate : fs::path();
+}
+
+/// Checks, before any work, that `path` is a mesh whose vertices carry object ids.
+void requireLabelledMesh(const fs::path& path) {
+  if (!readPly(path).hasLabels()) {
+    throw InputError(path,
+                     "no per-vertex object_id: not a ground-truth scene (objscan synth's "
+                     "scene_gt.ply is one)");
+  }
 }
 
 /// Object names from the scene_gt.json beside a scene_gt.ply, by id; empty when there is none.
@@ -132,8 +143,8 @@ Evaluation evaluateAgainstTruth(const fs::path& truth_path, const DiscoverOutcom
 }
 
 /// The outputs of the stages after fusion; a new mesh makes an earlier run's stale.
-const std::vector<std::string> kLaterOutputs = {"hypotheses.json", "objects", "renders",
-                                                "evaluation.json", "report.html"};
+const std::vector<std::string> kLaterOutputs = {"hypotheses.json", "objects",     "renders",
+                                                "evaluation.json", "report.html", "timings.json"};
 
 void removeStaleOutputs(const fs::path& out) {
   for (const std::string& name : kLaterOutputs) {
@@ -164,7 +175,22 @@ int runScan(ScanCommandOptions options) {
   if (!truth.empty() && !fs::is_regular_file(truth)) {
     throw InputError(truth, fs::exists(truth) ? "not a file" : "missing");
   }
-  if (truth.empty() && !options.no_ground_truth) truth = findGroundTruth(options.source);
+  if (!truth.empty()) {
+    requireLabelledMesh(truth);
+  } else if (!options.no_ground_truth) {
+    truth = findGroundTruth(options.source);
+    if (!truth.empty()) {
+      try {
+        requireLabelledMesh(truth);
+      } catch (const InputError& e) {
+        log::warning(std::string("ground truth beside the source not used: ") + e.what());
+        truth.clear();
+      }
+    }
+  }
+  if (!options.discover.model.empty()) {
+    (void)discovery::ObjectnessModel::load(options.discover.model);  // reported now, not later
+  }
   requireWritableFolder(out);
 
   nlohmann::json timings = {{"source", options.source}, {"interrupted", false}};
@@ -176,11 +202,15 @@ int runScan(ScanCommandOptions options) {
     timings["not_produced"] = not_produced;
     writeFileAtomically(out / "timings.json", timings.dump(1) + "\n");
   };
-  // Stops the run after a Ctrl-C: what is written stays, the rest is listed as not produced.
-  const auto stopHere = [&](const std::vector<std::string>& missing) {
+  // Stops the run after a Ctrl-C: what is written stays, the rest is listed as not produced. Once
+  // hypotheses.json exists, the report is written too, with a notice of what is missing.
+  const auto stopHere = [&](std::vector<std::string> missing) {
     timings["interrupted"] = true;
+    const bool report = fs::exists(out / "hypotheses.json");
+    if (report) std::erase(missing, std::string("report.html"));
     not_produced = missing;
     writeTimings();
+    if (report) writeReport(out);
     std::string list;
     for (const std::string& m : missing) list += (list.empty() ? "" : ", ") + m;
     std::printf("stopped by    Ctrl-C / SIGTERM; not produced: %s\n", list.c_str());
@@ -190,8 +220,9 @@ int runScan(ScanCommandOptions options) {
 
   StopSignals signals;
   options.limits.progress_label = "scan [1/4] fusing frames";
+  options.limits.live_stop_ends_capture = true;
+  options.limits.before_writing = [&out] { removeStaleOutputs(out); };
   const FuseOutcome fused = fuseSource(options.fuse, options.limits);
-  removeStaleOutputs(out);
   stages.push_back({{"name", "fuse"}, {"seconds", fused.fuse_s}});
   stages.push_back({{"name", "mesh"}, {"seconds", fused.mesh_s}});
   timings["source"] = fused.source_description;
@@ -205,10 +236,11 @@ int runScan(ScanCommandOptions options) {
   if (fused.interrupted) {
     // On a sensor, Ctrl-C is how capture ends: the scan goes on with what was fused.
     if (!fused.live) {
-      return stopHere({"hypotheses.json", "objects/", "renders/", "report.html"});
+      std::vector<std::string> missing = {"hypotheses.json", "objects/", "renders/", "report.html"};
+      if (!truth.empty()) missing.insert(missing.begin() + 2, "evaluation.json");
+      return stopHere(missing);
     }
     std::printf("capture       ended by Ctrl-C after %zu frames\n", fused.frames_read);
-    StopSignals::clear();
   }
   if (!fused.sensor_lost.empty()) timings["sensor_lost"] = fused.sensor_lost;
 
@@ -236,6 +268,7 @@ int runScan(ScanCommandOptions options) {
     std::printf("renders       none: no hypothesis to show\n");
   } else {
     log::info("scan [3/4] rendering pictures");
+    options.render.progress_label = "scan [3/4] rendering pictures";
     rendered = renderResults(options.render);
     stages.push_back({{"name", "render"}, {"seconds", rendered.seconds}});
     if (rendered.interrupted) return stopHere({"renders/", "report.html"});

@@ -2,12 +2,20 @@
 
 #include <atomic>
 #include <csignal>
+#include <stdexcept>
 
 namespace objscan::app {
 
 /// While alive, Ctrl-C (SIGINT) and SIGTERM set stopRequested() instead of killing the process, so
 /// a long command can finish what it has and write valid outputs; the previous handlers come back
 /// when it goes.
+/// Ctrl-C / SIGTERM came before there was anything to write (no frame fused yet). The command
+/// line maps it to exit code 130.
+class Interrupted : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 class StopSignals {
  public:
   StopSignals();

@@ -386,7 +386,8 @@ Snapshot SnapshotRenderer::overview(const SnapshotView& view) {
   Snapshot shot;
   shot.bgr = Impl::compose(rendered);
   shot.ranks = rendered.label;  // `rendered` goes out of scope: no copy needed
-  const int radius = std::max(9, view.intrinsics.height_px / 44);
+  const int radius = std::clamp(view.intrinsics.height_px / 44, 1,
+                                std::max(1, std::min(shot.bgr.cols, shot.bgr.rows) / 2 - 6));
   for (const PaintedHypothesis& h : impl_->hypotheses) {
     const cv::Mat mask = shot.ranks == static_cast<std::int32_t>(h.rank);
     const cv::Rect box = cv::boundingRect(mask);

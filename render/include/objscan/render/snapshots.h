@@ -53,8 +53,8 @@ Eigen::Vector3f sceneUp(const TriangleMesh& mesh);
 /// The overview camera for an image of width x height with a 60 degree horizontal field of view.
 /// Its direction comes from `kind` (`trajectory` may be null or empty: kAuto then means
 /// kThreeQuarter, kTrajectory is an std::invalid_argument); its position is moved along its own
-/// axes until every vertex of the hypotheses, and 96 % of the scene's vertices, are in the
-/// picture with a margin.
+/// axes until every vertex of the hypotheses is in the picture with a margin, and of the scene's
+/// vertices at most 2 % lie beyond each edge.
 SnapshotView overviewView(const TriangleMesh& scene, const Trajectory* trajectory,
                           const std::vector<PaintedHypothesis>& hypotheses, int width, int height,
                           ViewKind kind = ViewKind::kAuto);
