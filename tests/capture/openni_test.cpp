@@ -231,7 +231,9 @@ TEST_F(OpenNI, ReplaySelectionKeepsRecordingIndices) {
 }
 
 TEST_F(OpenNI, LiveVirtualSensorDeliversEveryFrameInOrder) {
-  auto live = openSensor("virtual:" + folder().string() + "?fps=60");
+  // 20 Hz: a reader slower than the sensor (a loaded machine, the sanitizers) would miss frames,
+  // as OpenNI2 keeps only the newest for it.
+  auto live = openSensor("virtual:" + folder().string() + "?fps=20");
   EXPECT_TRUE(live->info().live);
   EXPECT_EQ(live->info().frame_count, std::optional<std::size_t>(kFolderFrames));
   expectSameFrames(folderFrames(), readAll(*live), kFolderFrames);
@@ -270,7 +272,7 @@ TEST_F(OpenNI, LiveRecordingHoldsEveryFrameNextReturnedBitForBit) {
   std::vector<RgbdFrame> returned;
   RecordSummary summary;
   {
-    auto live = openSensor("virtual:" + folder().string() + "?fps=60", {}, {}, record);
+    auto live = openSensor("virtual:" + folder().string() + "?fps=20", {}, {}, record);
     ASSERT_NE(dynamic_cast<RecordingFrameSource*>(live.get()), nullptr);
     returned = readAll(*live);
     const std::optional<RecordSummary> finished = finishRecording(*live, "finished by the test");
