@@ -53,11 +53,7 @@ nlohmann::json boxJson(const TriangleMesh& mesh, const discovery::Segment& s) {
   return j;
 }
 
-std::string rankFile(std::size_t rank) {
-  char name[48];
-  std::snprintf(name, sizeof name, "objects/rank_%03zu.ply", rank);
-  return name;
-}
+std::string rankFile(std::size_t rank) { return "objects/" + rankFileName(rank, ".ply"); }
 
 /// Writes the sub-meshes into OUT/objects.partial (a fresh folder).
 void stageObjects(const fs::path& out, const std::vector<RankedHypothesis>& ranked,

@@ -1,5 +1,7 @@
 #pragma once
 
+#include <cstddef>
+#include <cstdio>
 #include <filesystem>
 #include <string>
 #include <system_error>
@@ -17,6 +19,14 @@ inline void prepareOutputFolder(const std::filesystem::path& out) {
     throw OutputError(out, "cannot create the output folder" +
                                (ec ? ": " + ec.message() : std::string(" (a file is in the way)")));
   }
+}
+
+/// The file of rank `rank` in a results folder's objects/ (".ply") or renders/ (".png"):
+/// rank_001.ply, rank_002.png, ...
+inline std::string rankFileName(std::size_t rank, const char* extension) {
+  char name[48];
+  std::snprintf(name, sizeof name, "rank_%03zu%s", rank, extension);
+  return name;
 }
 
 /// Creates OUT/NAME.partial empty (removing what an interrupted run left there) and returns it.

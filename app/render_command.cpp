@@ -109,12 +109,6 @@ nlohmann::json cameraJson(const render::SnapshotView& view) {
             {"height", in.height_px}}}};
 }
 
-std::string rankFile(std::size_t rank) {
-  char name[32];
-  std::snprintf(name, sizeof name, "rank_%03zu.png", rank);
-  return name;
-}
-
 }  // namespace
 
 RenderOutcome renderResults(const RenderCommandOptions& options) {
@@ -182,7 +176,7 @@ RenderOutcome renderResults(const RenderCommandOptions& options) {
     for (std::size_t i = 0; i < results.hypotheses.size(); ++i) {
       if (StopSignals::stopRequested()) break;
       closeups.push_back(renderer.closeUp(i, view, w, h).bgr);
-      writePng(partial / rankFile(results.hypotheses[i].rank), closeups.back());
+      writePng(partial / rankFileName(results.hypotheses[i].rank, ".png"), closeups.back());
       ++out.images;
       progress.advance();
     }

@@ -21,6 +21,7 @@
 #include "objscan/core/error.h"
 #include "objscan/discovery/shape_measures.h"
 #include "objscan/render/palette.h"
+#include "output_folder.h"
 
 namespace objscan::app {
 namespace {
@@ -663,10 +664,9 @@ Inputs readInputs(const fs::path& dir) {
   in.contact_sheet = readPng(renders / "contact_sheet.png");
   const std::size_t shown = std::min(in.hypotheses.rows.size(), kMaxRows);
   for (std::size_t i = 0; i < shown; ++i) {
-    char name[48];
-    std::snprintf(name, sizeof name, "rank_%03lld.png",
-                  static_cast<long long>(in.hypotheses.rows[i].rank));
-    in.closeups.push_back(readPng(renders / name));
+    // rank >= 1: checked when hypotheses.json was read.
+    in.closeups.push_back(readPng(
+        renders / rankFileName(static_cast<std::size_t>(in.hypotheses.rows[i].rank), ".png")));
   }
   return in;
 }

@@ -1,9 +1,5 @@
 #include "scan_command.h"
 
-#include <fcntl.h>
-#include <unistd.h>
-
-#include <cerrno>
 #include <chrono>
 #include <cstdio>
 #include <cstring>
@@ -39,14 +35,10 @@ double secondsSince(Clock::time_point start) {
 /// file system): creates and removes a probe file.
 void requireWritableFolder(const fs::path& out) {
   prepareOutputFolder(out);
-  const fs::path probe = out / ".objscan-write-probe";
-  const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) {
+  if (const int error = probeWritableFolder(out); error != 0) {
     throw OutputError(out,
-                      std::string("cannot write into the output folder: ") + std::strerror(errno));
+                      std::string("cannot write into the output folder: ") + std::strerror(error));
   }
-  ::close(fd);
-  ::unlink(probe.c_str());
 }
 
 /// The ground-truth scene mesh that comes with a source: X.scene_gt.ply beside X.oni, or

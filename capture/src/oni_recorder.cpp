@@ -14,13 +14,11 @@
 
 #include "oni_recorder.h"
 
-#include <fcntl.h>
 #include <sys/resource.h>
 #include <sys/statvfs.h>
 #include <unistd.h>
 
 #include <algorithm>
-#include <cerrno>
 #include <cstring>
 #include <functional>
 #include <memory>
@@ -107,16 +105,10 @@ void checkRecordingTarget(const fs::path& out) {
   if (fs::is_directory(out, ec)) throw InputError(out, "is a directory; name the .oni file");
   const fs::path parent = out.parent_path().empty() ? fs::path(".") : out.parent_path();
   if (!fs::is_directory(parent, ec)) throw OutputError(out, "its folder does not exist");
-  // Permissions alone do not say it (root, read-only mounts, virtual file systems): try.
-  const fs::path probe = temporaryName(out);
-  const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0644);
-  if (fd < 0) {
-    const int error = errno;
+  if (const int error = probeWritableFolder(parent); error != 0) {
     throw OutputError(out,
                       "cannot write a file in its folder: " + std::string(std::strerror(error)));
   }
-  ::close(fd);
-  fs::remove(probe, ec);
 }
 
 std::string sensorLostReason(std::size_t frames, bool disconnected) {

@@ -102,4 +102,14 @@ std::string readWholeFile(const fs::path& path) {
   return bytes;
 }
 
+int probeWritableFolder(const std::filesystem::path& folder) {
+  const std::filesystem::path probe =
+      folder / (".objscan-write-probe-" + std::to_string(::getpid()));
+  const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) return errno;
+  ::close(fd);
+  ::unlink(probe.c_str());
+  return 0;
+}
+
 }  // namespace objscan

@@ -119,12 +119,18 @@ std::vector<Eigen::Vector3f> sampleVertices(const TriangleMesh& mesh, std::size_
   return out;
 }
 
-/// The area-weighted normal of the mesh's faces (by winding), flipped to agree with the vertex
-/// normals when the mesh has them (fusion's normals point to free space, the sensor's side).
-Eigen::Vector3d meanFaceNormal(const TriangleMesh& mesh, Eigen::Matrix3d* scatter) {
-  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+/// How the mesh's faces are oriented, from one pass over them.
+struct FaceNormals {
+  /// The area-weighted normal (by winding), flipped to agree with the vertex normals when the
+  /// mesh has them (fusion's normals point to free space, the sensor's side).
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();  ///< sum of area * n n^T
+};
+
+FaceNormals faceNormals(const TriangleMesh& mesh) {
+  FaceNormals out;
+  Eigen::Vector3d& sum = out.mean;
   Eigen::Vector3d vertex_sum = Eigen::Vector3d::Zero();
-  if (scatter != nullptr) scatter->setZero();
   for (const Eigen::Vector3i& t : mesh.triangles) {
     const Eigen::Vector3d a = mesh.positions[t[0]].cast<double>();
     const Eigen::Vector3d cross =
@@ -132,19 +138,31 @@ Eigen::Vector3d meanFaceNormal(const TriangleMesh& mesh, Eigen::Matrix3d* scatte
     const double twice_area = cross.norm();
     if (!(twice_area > 0.0)) continue;
     sum += cross;  // = 2 area * unit normal
-    if (scatter != nullptr) *scatter += cross * cross.transpose() / twice_area;
+    out.scatter += cross * cross.transpose() / twice_area;
     if (!mesh.normals.empty()) {
       vertex_sum += (mesh.normals[t[0]] + mesh.normals[t[1]] + mesh.normals[t[2]]).cast<double>();
     }
   }
   if (!mesh.normals.empty() && sum.dot(vertex_sum) < 0.0) sum = -sum;
-  return sum;
+  return out;
 }
 
-/// The horizontal direction towards the side the surfaces face: the mean normal without its up
-/// part, or (when it has none) the horizontal axis across which the scene is thinnest.
-Eigen::Vector3f frontOf(const TriangleMesh& mesh, const Eigen::Vector3f& up) {
-  const Eigen::Vector3d mean = meanFaceNormal(mesh, nullptr);
+/// sceneUp's direction from the face normals (see there).
+Eigen::Vector3f upOf(const FaceNormals& normals) {
+  if (!(normals.scatter.trace() > 0.0)) {
+    throw std::invalid_argument("snapshot: the mesh has no triangle of positive area");
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(normals.scatter);
+  Eigen::Vector3d up = solver.eigenvectors().col(2);  // largest eigenvalue last
+  if (up.dot(normals.mean) < 0.0) up = -up;
+  return up.cast<float>().normalized();
+}
+
+/// The horizontal direction towards the side the surfaces face: the mean normal (`mean`, from
+/// faceNormals) without its up part, or (when it has none) the horizontal axis across which the
+/// scene is thinnest.
+Eigen::Vector3f frontOf(const TriangleMesh& mesh, const Eigen::Vector3d& mean,
+                        const Eigen::Vector3f& up) {
   Eigen::Vector3f front = (mean - mean.dot(up.cast<double>()) * up.cast<double>()).cast<float>();
   if (front.norm() > 0.05f * static_cast<float>(mean.norm()) && front.norm() > 0.0f) {
     return front.normalized();
@@ -240,17 +258,7 @@ const char* toString(ViewKind kind) {
   return "?";
 }
 
-Eigen::Vector3f sceneUp(const TriangleMesh& mesh) {
-  Eigen::Matrix3d scatter;
-  const Eigen::Vector3d mean = meanFaceNormal(mesh, &scatter);
-  if (!(scatter.trace() > 0.0)) {
-    throw std::invalid_argument("snapshot: the mesh has no triangle of positive area");
-  }
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(scatter);
-  Eigen::Vector3d up = solver.eigenvectors().col(2);  // largest eigenvalue last
-  if (up.dot(mean) < 0.0) up = -up;
-  return up.cast<float>().normalized();
-}
+Eigen::Vector3f sceneUp(const TriangleMesh& mesh) { return upOf(faceNormals(mesh)); }
 
 SnapshotView overviewView(const TriangleMesh& scene, const Trajectory* trajectory,
                           const std::vector<PaintedHypothesis>& hypotheses, int width, int height,
@@ -269,8 +277,9 @@ SnapshotView overviewView(const TriangleMesh& scene, const Trajectory* trajector
   if (kind == ViewKind::kTrajectory) {
     R = trajectoryAxes(*trajectory);
   } else {
-    const Eigen::Vector3f up = sceneUp(scene);
-    const Eigen::Vector3f front = frontOf(scene, up);
+    const FaceNormals normals = faceNormals(scene);  // one pass serves both directions
+    const Eigen::Vector3f up = upOf(normals);
+    const Eigen::Vector3f front = frontOf(scene, normals.mean, up);
     if (kind == ViewKind::kTop) {
       R = lookAlong(-up, front);
     } else {

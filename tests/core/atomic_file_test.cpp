@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cerrno>
+
 #include "objscan/core/error.h"
 #include "test_support.h"
 
@@ -63,6 +65,21 @@ TEST(AtomicFile, ReadWholeFileErrorsNameThePath) {
   testing::expectInputError([&] { readWholeFile(dir.path()); }, dir.path(), "is a directory");
   testing::writeBytes(dir / "empty", "");
   EXPECT_EQ(readWholeFile(dir / "empty"), "");
+}
+
+}  // namespace
+}  // namespace objscan
+
+namespace objscan {
+namespace {
+
+TEST(AtomicFile, WriteProbeLeavesNothingAndReportsTheError) {
+  testing::TempDir dir;
+  EXPECT_EQ(probeWritableFolder(dir.path()), 0);
+  EXPECT_EQ(testing::entryCount(dir.path()), 0u);
+  EXPECT_EQ(probeWritableFolder(dir / "missing"), ENOENT);
+  // sysfs takes no new files, even from root (whom permissions would not stop).
+  EXPECT_NE(probeWritableFolder("/sys"), 0);
 }
 
 }  // namespace

@@ -11,6 +11,11 @@ namespace objscan {
 /// removing the temporary file.
 void writeFileAtomically(const std::filesystem::path& path, std::string_view bytes);
 
+/// Whether a file can be created in `folder`: creates and removes a probe file there, since
+/// permissions alone do not say it (root, read-only mounts, virtual file systems). Returns 0, or
+/// the errno of the failed creation.
+int probeWritableFolder(const std::filesystem::path& folder);
+
 /// Reads a whole regular file into memory. Throws InputError when the path is missing, is a
 /// directory or another non-regular file, or cannot be read. An empty file is returned as "".
 std::string readWholeFile(const std::filesystem::path& path);
