@@ -71,6 +71,13 @@ class FrameListener : public openni::VideoStream::NewFrameListener {
   explicit FrameListener(std::function<void(const openni::VideoFrameRef&)> on_frame)
       : on_frame_(std::move(on_frame)) {}
   void onNewFrame(openni::VideoStream& stream) override {
+    // readFrame blocks until a frame is there. OpenNI2 may raise a callback whose frame an
+    // earlier call already took (callbacks queue, a read takes the newest); at the end of the
+    // stream that read would wait forever, and removing the listener waits for the callback: a
+    // hang at close. So read only what is ready now.
+    openni::VideoStream* streams[1] = {&stream};
+    int ready = -1;
+    if (openni::OpenNI::waitForAnyStream(streams, 1, &ready, 0) != openni::STATUS_OK) return;
     openni::VideoFrameRef ref;
     if (stream.readFrame(&ref) == openni::STATUS_OK) on_frame_(ref);
   }
