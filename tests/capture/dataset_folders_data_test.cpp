@@ -74,14 +74,18 @@ TEST(DatasetFolders, SevenScenesSampleHas300FramesWithItsCalibrationAndPoses) {
 
 TEST(DatasetFolders, TumDeskSampleHas50FramesWithGroundTruth) {
   const fs::path dir = kDataDir / "tum_fr2_desk_50";
-  // The sample has no intrinsics.json: the folder alone gives the Xtion defaults, and TUM's
-  // published freiburg2 calibration comes in as an override.
+  // The sample carries TUM's published freiburg2 calibration as intrinsics.json (../shared/data's
+  // README): the folder alone gives it, and an override still wins over it.
+  const Intrinsics freiburg2{520.9, 521.0, 325.1, 249.7, 640, 480};
   {
     const auto plain = openFolderSource(dir);
-    EXPECT_EQ(plain->info().intrinsics, Intrinsics::xtionDefault());
-    EXPECT_NE(plain->info().intrinsics_origin.find("no intrinsics.json"), std::string::npos);
+    EXPECT_EQ(plain->info().intrinsics, freiburg2);
+    EXPECT_NE(plain->info().intrinsics_origin.find("intrinsics.json"), std::string::npos)
+        << plain->info().intrinsics_origin;
+    const auto overridden = openFolderSource(dir, {}, Intrinsics::xtionDefault(), "the Xtion's");
+    EXPECT_EQ(overridden->info().intrinsics, Intrinsics::xtionDefault());
+    EXPECT_EQ(overridden->info().intrinsics_origin, "the Xtion's");
   }
-  const Intrinsics freiburg2{520.9, 521.0, 325.1, 249.7, 640, 480};
   const auto source = openFolderSource(dir, {}, freiburg2, "TUM freiburg2 calibration");
   const SourceInfo& info = source->info();
   EXPECT_EQ(info.frame_count, 50u);
