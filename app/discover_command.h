@@ -4,9 +4,8 @@
 #include <optional>
 #include <vector>
 
-#include "discovery_scenes.h"
-#include "objscan/discovery/discover.h"
-#include "objscan/discovery/scoring.h"
+#include "objscan/discovery/scenes.h"
+#include "objscan/report/results.h"
 
 namespace objscan::app {
 
@@ -18,29 +17,24 @@ struct DiscoverCommandOptions {
   bool no_catalog = false;
   std::filesystem::path model;  ///< empty: the unsupervised average
   bool timings = false;
+  report::Settings settings;  ///< the command line's, for OUT/settings.json
 };
 
-/// A hypothesis of a run: which scene it is in, and the ranked hypothesis itself.
-struct RankedHypothesis {
-  std::size_t scene = 0;
-  discovery::Hypothesis hypothesis;
-};
+/// The catalog a discovery run used, as settings.json records it.
+std::optional<report::CatalogUse> catalogUse(const discovery::SceneDiscovery& run);
 
-/// What a discovery run found and wrote.
-struct DiscoverOutcome {
-  SceneSet set;
-  std::vector<RankedHypothesis> ranked;  ///< best first, over all scenes
-  discovery::ScoreKind scorer = discovery::ScoreKind::kAverage;
-  std::optional<std::filesystem::path> catalog;  ///< the catalog used, if any
-  double seconds = 0.0;
-};
+/// The library's options for these: the config checked, the model loaded, the catalog resolved
+/// (InputError / std::invalid_argument for a bad one, before any work).
+discovery::SceneDiscoveryOptions sceneDiscoveryOptions(const DiscoverCommandOptions& options);
 
-/// Ranks the hypotheses of options.meshes and writes OUT/hypotheses.json and
-/// OUT/objects/rank_NNN.ply (the objects folder is swapped in whole, so it never mixes runs).
-DiscoverOutcome discoverScenes(const DiscoverCommandOptions& options);
+/// Writes OUT/hypotheses.json and OUT/objects/rank_NNN.ply of a discovery run (the objects folder
+/// swapped in whole, so it never mixes runs) and returns what was written.
+report::Hypotheses writeDiscoveryResults(const DiscoverCommandOptions& options,
+                                         const discovery::SceneDiscovery& run);
 
 /// Prints discover's summary (and with options.timings each stage's time) to stdout.
-void printDiscoverSummary(const DiscoverCommandOptions& options, const DiscoverOutcome& outcome);
+void printDiscoverSummary(const DiscoverCommandOptions& options,
+                          const discovery::SceneDiscovery& run);
 
 /// `objscan discover`: ranks the object hypotheses of one or more scene meshes into
 /// OUT/hypotheses.json and OUT/objects/rank_NNN.ply, and prints a summary (and with --timings

@@ -9,19 +9,35 @@
 
 #include <nlohmann/json.hpp>
 
-#include "discovery_scenes.h"
 #include "exit_codes.h"
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/error.h"
 #include "objscan/core/log.h"
+#include "objscan/core/output_folder.h"
 #include "objscan/core/progress.h"
 #include "objscan/discovery/evaluation.h"
-#include "output_folder.h"
+#include "objscan/discovery/scenes.h"
+#include "objscan/report/results_io.h"
 
 namespace objscan::app {
 namespace {
 
 namespace fs = std::filesystem;
+using discovery::LabelledSegments;
+using discovery::SceneDiscovery;
+
+/// The labelled scenes through discovery's one entry point (no model: the average score).
+SceneDiscovery labelledScenes(const std::vector<fs::path>& arguments,
+                              const discovery::DiscoveryConfig& config,
+                              const std::optional<fs::path>& catalog) {
+  config.validate();
+  std::vector<discovery::SceneInput> scenes;
+  for (const fs::path& a : arguments) scenes.push_back(discovery::loadScene(a, true));
+  discovery::SceneDiscoveryOptions options;
+  options.config = config;
+  options.catalog = catalog;
+  return discovery::discoverScenes(std::move(scenes), options);
+}
 
 /// Label thresholds: the paper's 0.7 first, then 0.5 and 0.8 as well.
 constexpr double kLabelIous[] = {0.7, 0.5, 0.8};
@@ -33,10 +49,10 @@ struct Recall {
   std::size_t hypotheses_05 = 0, hypotheses_07 = 0;  ///< by any candidate kept by suppression
 };
 
-Recall objectRecall(const SceneSet& set, const LabelledSegments& kept) {
+Recall objectRecall(const SceneDiscovery& set, const LabelledSegments& kept) {
   Recall r;
   for (std::size_t s = 0; s < set.scenes.size(); ++s) {
-    const LoadedScene& scene = set.scenes[s];
+    const discovery::DiscoveredScene& scene = set.scenes[s];
     const discovery::GroundTruthObjects& truth = *scene.truth;
     std::map<std::int32_t, double> best_candidate, best_kept;
     for (std::int32_t id : truth.objectIds()) best_candidate[id] = best_kept[id] = 0.0;
@@ -53,8 +69,8 @@ Recall objectRecall(const SceneSet& set, const LabelledSegments& kept) {
     }
     for (const auto& [id, iou] : best_candidate) {
       std::ostringstream row;
-      row << scene.mesh_path.string() << ',' << id << ',' << truth.objectSize(id) << ',' << iou
-          << ',' << best_kept[id] << '\n';
+      row << scene.name << ',' << id << ',' << truth.objectSize(id) << ',' << iou << ','
+          << best_kept[id] << '\n';
       r.csv += row.str();
       ++r.objects;
       r.candidates_05 += iou >= 0.5;
@@ -68,13 +84,13 @@ Recall objectRecall(const SceneSet& set, const LabelledSegments& kept) {
 
 double share(std::size_t a, std::size_t b) { return b ? static_cast<double>(a) / b : 0.0; }
 
-std::string segmentsCsv(const SceneSet& set, const LabelledSegments& segs) {
+std::string segmentsCsv(const SceneDiscovery& set, const LabelledSegments& segs) {
   std::ostringstream csv;
   csv << std::setprecision(6) << "scene,object_id,iou";
   for (const char* name : discovery::kMeasureNames) csv << ',' << name;
   csv << '\n';
   for (std::size_t i = 0; i < segs.measures.size(); ++i) {
-    csv << set.scenes[segs.scene[i]].mesh_path.string() << ',' << segs.matches[i].object_id << ','
+    csv << set.scenes[segs.scene[i]].name << ',' << segs.matches[i].object_id << ','
         << segs.matches[i].iou;
     for (double v : discovery::measureValues(segs.measures[i])) {
       csv << ',';
@@ -83,6 +99,73 @@ std::string segmentsCsv(const SceneSet& set, const LabelledSegments& segs) {
     csv << '\n';
   }
   return csv.str();
+}
+
+/// The protocol with segments labelled at `iou`; its CSVs and plot into OUT, its APs into
+/// `summary` and on stdout. False when the labels at this IoU cannot be evaluated (warned).
+bool evaluateAtIou(const EvalCommandOptions& options, const discovery::EvalConfig& eval,
+                   const LabelledSegments& segs, double iou, nlohmann::json& summary) {
+  const std::vector<int> labels = segs.labels(iou);
+  discovery::EvalConfig config = eval;
+  // The full protocol at the paper's threshold; the others for the combinations only.
+  config.ablation = eval.ablation && iou == 0.7;
+  const auto objects = static_cast<std::size_t>(std::count(labels.begin(), labels.end(), 1));
+  std::printf("\nlabel: object at IoU >= %.1f: %zu of %zu segments\n", iou, objects, labels.size());
+  discovery::EvalResult result;
+  try {
+    ProgressBar progress("evaluating, IoU " + std::to_string(iou).substr(0, 3),
+                         static_cast<std::size_t>(config.splits));
+    result = discovery::evaluate(segs.measures, labels, config, [&] { progress.advance(); });
+  } catch (const std::invalid_argument& e) {
+    if (iou == 0.7) throw;  // the paper's labels: nothing to report without them
+    log::warning("labels at IoU " + std::to_string(iou).substr(0, 3) + ": " + e.what());
+    return false;
+  }
+  std::ostringstream suffix;
+  suffix << "_iou" << std::lround(iou * 10);
+  const std::string tag = iou == 0.7 ? "" : suffix.str();
+  discovery::writeEvalCsv(result, options.out / ("pr_curves" + tag + ".csv"),
+                          options.out / ("ap" + tag + ".csv"));
+  discovery::writePrPlot(result, options.out / ("pr_curves" + tag + ".png"));
+  nlohmann::json aps;
+  for (const auto* list : {&result.methods, &result.ablation}) {
+    for (const discovery::MethodResult& m : *list) {
+      std::printf("  %-36s AP %.3f +- %.3f\n", m.name.c_str(), m.ap_mean, m.ap_sd);
+      aps[m.name] = {{"ap", m.ap_mean}, {"sd", m.ap_sd}};
+    }
+  }
+  summary["label_iou_" + suffix.str().substr(4)] = {{"objects", objects}, {"ap", aps}};
+  return true;
+}
+
+/// recall.csv and objects.csv, the recall into `summary` and on stdout.
+void writeRecall(const fs::path& out, const Recall& recall, nlohmann::json& summary) {
+  summary["object_recall"] = {{"objects", recall.objects},
+                              {"candidates_iou_0.5", share(recall.candidates_05, recall.objects)},
+                              {"candidates_iou_0.7", share(recall.candidates_07, recall.objects)},
+                              {"hypotheses_iou_0.5", share(recall.hypotheses_05, recall.objects)},
+                              {"hypotheses_iou_0.7", share(recall.hypotheses_07, recall.objects)}};
+  std::ostringstream csv;
+  csv << "pool,iou,matched,objects,recall\n";
+  const auto row = [&](const char* pool, const char* iou, std::size_t matched) {
+    csv << pool << ',' << iou << ',' << matched << ',' << recall.objects << ','
+        << share(matched, recall.objects) << '\n';
+  };
+  row("candidates", "0.5", recall.candidates_05);
+  row("candidates", "0.7", recall.candidates_07);
+  row("hypotheses", "0.5", recall.hypotheses_05);
+  row("hypotheses", "0.7", recall.hypotheses_07);
+  writeFileAtomically(out / "recall.csv", csv.str());
+  writeFileAtomically(
+      out / "objects.csv",
+      "scene,object_id,vertices,best_candidate_iou,best_hypothesis_iou\n" + recall.csv);
+  std::printf(
+      "\nobject recall %zu objects: any candidate %.1f %% at IoU 0.5, %.1f %% at 0.7; "
+      "after suppression %.1f %% and %.1f %%\n",
+      recall.objects, 100 * share(recall.candidates_05, recall.objects),
+      100 * share(recall.candidates_07, recall.objects),
+      100 * share(recall.hypotheses_05, recall.objects),
+      100 * share(recall.hypotheses_07, recall.objects));
 }
 
 }  // namespace
@@ -94,10 +177,9 @@ int runEval(const EvalCommandOptions& options) {
   eval.ablation = options.ablation;
   eval.validate();
   prepareOutputFolder(options.out);
-  const SceneSet set = readScenes(options.scenes, {options.config, options.catalog, true});
-  const LabelledSegments segs = labelledSegments(set, options.config.max_iou);
+  const SceneDiscovery set = labelledScenes(options.scenes, options.config, options.catalog);
+  const LabelledSegments segs = discovery::labelledSegments(set, options.config.max_iou);
   writeFileAtomically(options.out / "segments.csv", segmentsCsv(set, segs));
-  const Recall recall = objectRecall(set, segs);
 
   nlohmann::json summary;
   summary["scenes"] = set.scenes.size();
@@ -107,78 +189,26 @@ int runEval(const EvalCommandOptions& options) {
   summary["segmentation"] = options.config.supports.enabled ? "support surfaces cut" : "paper";
   std::printf("scenes        %zu, %zu segments after suppression\n", set.scenes.size(),
               segs.measures.size());
-  for (double iou : kLabelIous) {
-    const std::vector<int> labels = segs.labels(iou);
-    discovery::EvalConfig config = eval;
-    // The full protocol at the paper's threshold; the others for the combinations only.
-    config.ablation = eval.ablation && iou == 0.7;
-    const std::size_t objects =
-        static_cast<std::size_t>(std::count(labels.begin(), labels.end(), 1));
-    std::printf("\nlabel: object at IoU >= %.1f: %zu of %zu segments\n", iou, objects,
-                labels.size());
-    discovery::EvalResult result;
-    try {
-      ProgressBar progress("evaluating, IoU " + std::to_string(iou).substr(0, 3),
-                           static_cast<std::size_t>(config.splits));
-      result = discovery::evaluate(segs.measures, labels, config, [&] { progress.advance(); });
-    } catch (const std::invalid_argument& e) {
-      if (iou == 0.7) throw;  // the paper's labels: nothing to report without them
-      log::warning("labels at IoU " + std::to_string(iou).substr(0, 3) + ": " + e.what());
-      continue;
-    }
-    std::ostringstream suffix;
-    suffix << "_iou" << std::lround(iou * 10);
-    const std::string tag = iou == 0.7 ? "" : suffix.str();
-    discovery::writeEvalCsv(result, options.out / ("pr_curves" + tag + ".csv"),
-                            options.out / ("ap" + tag + ".csv"));
-    discovery::writePrPlot(result, options.out / ("pr_curves" + tag + ".png"));
-    nlohmann::json aps;
-    for (const auto* list : {&result.methods, &result.ablation}) {
-      for (const discovery::MethodResult& m : *list) {
-        std::printf("  %-36s AP %.3f +- %.3f\n", m.name.c_str(), m.ap_mean, m.ap_sd);
-        aps[m.name] = {{"ap", m.ap_mean}, {"sd", m.ap_sd}};
-      }
-    }
-    summary["label_iou_" + suffix.str().substr(4)] = {{"objects", objects}, {"ap", aps}};
-  }
-  summary["object_recall"] = {{"objects", recall.objects},
-                              {"candidates_iou_0.5", share(recall.candidates_05, recall.objects)},
-                              {"candidates_iou_0.7", share(recall.candidates_07, recall.objects)},
-                              {"hypotheses_iou_0.5", share(recall.hypotheses_05, recall.objects)},
-                              {"hypotheses_iou_0.7", share(recall.hypotheses_07, recall.objects)}};
-  std::ostringstream recall_csv;
-  recall_csv << "pool,iou,matched,objects,recall\n"
-             << "candidates,0.5," << recall.candidates_05 << ',' << recall.objects << ','
-             << share(recall.candidates_05, recall.objects) << '\n'
-             << "candidates,0.7," << recall.candidates_07 << ',' << recall.objects << ','
-             << share(recall.candidates_07, recall.objects) << '\n'
-             << "hypotheses,0.5," << recall.hypotheses_05 << ',' << recall.objects << ','
-             << share(recall.hypotheses_05, recall.objects) << '\n'
-             << "hypotheses,0.7," << recall.hypotheses_07 << ',' << recall.objects << ','
-             << share(recall.hypotheses_07, recall.objects) << '\n';
-  writeFileAtomically(options.out / "recall.csv", recall_csv.str());
-  writeFileAtomically(
-      options.out / "objects.csv",
-      "scene,object_id,vertices,best_candidate_iou,best_hypothesis_iou\n" + recall.csv);
+  for (double iou : kLabelIous) evaluateAtIou(options, eval, segs, iou, summary);
+  writeRecall(options.out, objectRecall(set, segs), summary);
   writeFileAtomically(options.out / "summary.json", summary.dump(1) + "\n");
-  std::printf(
-      "\nobject recall %zu objects: any candidate %.1f %% at IoU 0.5, %.1f %% at 0.7; "
-      "after suppression %.1f %% and %.1f %%\n",
-      recall.objects, 100 * share(recall.candidates_05, recall.objects),
-      100 * share(recall.candidates_07, recall.objects),
-      100 * share(recall.hypotheses_05, recall.objects),
-      100 * share(recall.hypotheses_07, recall.objects));
+  report::Settings settings = options.settings;
+  if (set.catalog) {
+    settings.catalog =
+        report::CatalogUse{set.catalog->string(), set.catalog_scenes, set.catalog_segments};
+  }
+  report::writeSettings(options.out / report::kSettingsFile, settings);
   std::printf(
       "written       %s (ap.csv, pr_curves.csv/png, *_iou5/8, segments.csv, recall.csv, "
-      "summary.json)\n",
+      "summary.json, settings.json)\n",
       options.out.c_str());
   return kExitSuccess;
 }
 
 int runTrain(const TrainCommandOptions& options) {
   const discovery::ScoreKind kind = discovery::scoreKindFromString(options.kind);
-  const SceneSet set = readScenes(options.scenes, {options.config, options.catalog, true});
-  const LabelledSegments segs = labelledSegments(set, options.config.max_iou);
+  const SceneDiscovery set = labelledScenes(options.scenes, options.config, options.catalog);
+  const LabelledSegments segs = discovery::labelledSegments(set, options.config.max_iou);
   const std::vector<int> labels = segs.labels(options.min_iou);
   std::vector<discovery::MeasureRow> rows;
   for (const discovery::ShapeMeasures& m : segs.measures)

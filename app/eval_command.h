@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "objscan/discovery/discover.h"
+#include "objscan/report/results.h"
 
 namespace objscan::app {
 
@@ -18,6 +19,7 @@ struct EvalCommandOptions {
   int splits = 20;
   std::uint64_t seed = 1;
   bool ablation = true;
+  report::Settings settings;  ///< the command line's, for OUT/settings.json
 };
 
 /// `objscan eval`: the paper's protocol on labelled scenes; writes ap.csv, pr_curves.csv,

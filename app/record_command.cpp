@@ -5,12 +5,12 @@
 #include <string>
 
 #include "exit_codes.h"
-#include "frame_sources.h"
 #include "objscan/capture/openni.h"
 #include "objscan/capture/virtual_sensor.h"
 #include "objscan/core/intrinsics.h"
 #include "objscan/core/log.h"
 #include "objscan/core/trajectory.h"
+#include "objscan/pipeline/sources.h"
 #include "stop_signals.h"
 
 namespace objscan::app {
@@ -41,7 +41,7 @@ int runRecord(const RecordCommandOptions& options) {
   // Ground truth travels with recordings of a virtual sensor whose source has it. Opening the
   // source here first also reports a bad folder before any recording starts.
   if (capture::isVirtualSensorUri(options.device)) {
-    record.ground_truth = virtualSensorGroundTruth(options.device);
+    record.ground_truth = pipeline::virtualSensorGroundTruth(options.device);
   }
 
   capture::RecordSummary summary;

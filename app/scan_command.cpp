@@ -1,142 +1,32 @@
 #include "scan_command.h"
 
-#include <chrono>
 #include <cstdio>
 #include <cstring>
-#include <set>
 #include <system_error>
-#include <unordered_map>
+#include <utility>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "exit_codes.h"
 #include "objscan/core/atomic_file.h"
+#include "objscan/core/clock.h"
 #include "objscan/core/error.h"
 #include "objscan/core/log.h"
-#include "objscan/core/ply_io.h"
-#include "objscan/discovery/labels.h"
-#include "objscan/discovery/scoring.h"
-#include "output_folder.h"
-#include "report.h"
+#include "objscan/core/output_folder.h"
+#include "objscan/discovery/catalog.h"
+#include "objscan/pipeline/ground_truth.h"
+#include "objscan/report/report.h"
+#include "objscan/report/results_io.h"
 #include "stop_signals.h"
 
 namespace objscan::app {
 namespace {
 
 namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
-
-double secondsSince(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
-/// Fails now, not after minutes of fusing, when OUT cannot take files (permissions, a read-only
-/// file system): creates and removes a probe file.
-void requireWritableFolder(const fs::path& out) {
-  prepareOutputFolder(out);
-  if (const int error = probeWritableFolder(out); error != 0) {
-    throw OutputError(out,
-                      std::string("cannot write into the output folder: ") + std::strerror(error));
-  }
-}
-
-/// The ground-truth scene mesh that comes with a source: X.scene_gt.ply beside X.oni, or
-/// scene_gt.ply in a recording folder (objscan synth writes both).
-fs::path findGroundTruth(const std::string& source) {
-  const fs::path p = source;
-  fs::path candidate;
-  std::error_code ec;
-  if (p.extension() == ".oni") {
-    candidate = p.parent_path() / (p.stem().string() + ".scene_gt.ply");
-  } else if (fs::is_directory(p, ec)) {
-    candidate = p / "scene_gt.ply";
-  }
-  return !candidate.empty() && fs::is_regular_file(candidate, ec) ? candidate : fs::path();
-}
-
-/// Checks, before any work, that `path` is a mesh whose vertices carry object ids.
-void requireLabelledMesh(const fs::path& path) {
-  if (!readPly(path).hasLabels()) {
-    throw InputError(path,
-                     "no per-vertex object_id: not a ground-truth scene (objscan synth's "
-                     "scene_gt.ply is one)");
-  }
-}
-
-/// Object names from the scene_gt.json beside a scene_gt.ply, by id; empty when there is none.
-std::unordered_map<std::int32_t, std::string> objectNames(const fs::path& truth_ply) {
-  std::unordered_map<std::int32_t, std::string> names;
-  fs::path json = truth_ply;
-  json.replace_extension(".json");
-  std::error_code ec;
-  if (!fs::is_regular_file(json, ec)) return names;
-  try {
-    const nlohmann::json doc = nlohmann::json::parse(readWholeFile(json));
-    for (const nlohmann::json& o : doc.at("objects")) {
-      names[o.at("id").get<std::int32_t>()] = o.value("name", std::string());
-    }
-  } catch (const nlohmann::json::exception& e) {
-    log::warning(json.string() + ": object names not read (" + e.what() + ")");
-  }
-  return names;
-}
-
-struct Evaluation {
-  nlohmann::json json;
-  std::size_t objects = 0, found = 0;
-  double ap = 0.0;
-};
-
-/// Matches the ranked hypotheses, best first, with the ground-truth objects: a hypothesis finds
-/// an object when their vertex IoU reaches min_iou and no better-ranked one found it already.
-/// Precision and recall after each rank; AP is the mean, over the objects, of the precision at
-/// the rank where each was found (0 for the objects never found).
-Evaluation evaluateAgainstTruth(const fs::path& truth_path, const DiscoverOutcome& discovered,
-                                double min_iou) {
-  const LoadedScene& scene = discovered.set.scenes.at(0);
-  const discovery::GroundTruthObjects truth(labelsFromTruthMesh(truth_path, scene.mesh));
-  const auto names = objectNames(truth_path);
-  Evaluation e;
-  e.objects = truth.objectIds().size();
-  std::set<std::int32_t> found;
-  nlohmann::json curve = nlohmann::json::array(), matches = nlohmann::json::array();
-  double precision_sum = 0.0;
-  for (std::size_t k = 0; k < discovered.ranked.size(); ++k) {
-    const discovery::ObjectMatch m =
-        truth.bestMatch(discovered.ranked[k].hypothesis.segment.vertices);
-    const bool hit = discovery::isObject(m, min_iou) && found.insert(m.object_id).second;
-    const double precision = static_cast<double>(found.size()) / static_cast<double>(k + 1);
-    if (hit) precision_sum += precision;
-    curve.push_back(
-        {{"rank", k + 1},
-         {"recall",
-          e.objects ? static_cast<double>(found.size()) / static_cast<double>(e.objects) : 0.0},
-         {"precision", precision}});
-    const auto name = names.find(m.object_id);
-    matches.push_back(
-        {{"rank", k + 1},
-         {"object_id", m.object_id},
-         {"object", m.object_id != 0 && name != names.end() ? nlohmann::json(name->second)
-                                                            : nlohmann::json(nullptr)},
-         {"iou", m.iou},
-         {"found", hit}});
-  }
-  e.found = found.size();
-  e.ap = e.objects ? precision_sum / static_cast<double>(e.objects) : 0.0;
-  e.json = {{"ground_truth", truth_path.string()},
-            {"objects", e.objects},
-            {"min_iou", min_iou},
-            {"found", e.found},
-            {"ap", e.ap},
-            {"curve", curve},
-            {"hypotheses", matches}};
-  return e;
-}
 
 /// The outputs of the stages after fusion; a new mesh makes an earlier run's stale.
 const std::vector<std::string> kLaterOutputs = {"hypotheses.json", "objects",     "renders",
-                                                "evaluation.json", "report.html", "timings.json"};
+                                                "evaluation.json", "report.html", "timings.json",
+                                                "settings.json"};
 
 void removeStaleOutputs(const fs::path& out) {
   for (const std::string& name : kLaterOutputs) {
@@ -149,149 +39,206 @@ void removeStaleOutputs(const fs::path& out) {
   }
 }
 
-}  // namespace
+/// Fails now, not after minutes of fusing, when OUT cannot take files (permissions, a read-only
+/// file system): creates and removes a probe file.
+void requireWritableFolder(const fs::path& out) {
+  prepareOutputFolder(out);
+  if (const int error = probeWritableFolder(out); error != 0) {
+    throw OutputError(out,
+                      std::string("cannot write into the output folder: ") + std::strerror(error));
+  }
+}
 
-int runScan(ScanCommandOptions options) {
-  const auto start = Clock::now();
-  if (options.source.empty()) options.source = "live";
-  const fs::path& out = options.out;
-  options.fuse.source = options.source;
-  options.fuse.out = out;
-  options.discover.meshes = {out / "mesh.ply"};
-  options.discover.out = out;
-  options.render.dir = out;
-  // Settings and the ground-truth file are checked before anything is opened or written.
-  options.fuse.config.validate();
-  options.discover.config.validate();
+/// The ground truth to evaluate against, checked before any work; empty for none.
+fs::path groundTruthOf(const ScanCommandOptions& options) {
   fs::path truth = options.ground_truth;
-  if (!truth.empty() && !fs::is_regular_file(truth)) {
-    throw InputError(truth, fs::exists(truth) ? "not a file" : "missing");
-  }
   if (!truth.empty()) {
-    requireLabelledMesh(truth);
-  } else if (!options.no_ground_truth) {
-    truth = findGroundTruth(options.source);
-    if (!truth.empty()) {
-      try {
-        requireLabelledMesh(truth);
-      } catch (const InputError& e) {
-        log::warning(std::string("ground truth beside the source not used: ") + e.what());
-        truth.clear();
-      }
+    if (!fs::is_regular_file(truth)) {
+      throw InputError(truth, fs::exists(truth) ? "not a file" : "missing");
     }
+    pipeline::requireLabelledMesh(truth);
+    return truth;
   }
-  if (!options.discover.model.empty()) {
-    (void)discovery::ObjectnessModel::load(options.discover.model);  // reported now, not later
+  if (options.no_ground_truth) return {};
+  truth = pipeline::findGroundTruth(options.source);
+  if (truth.empty()) return {};
+  try {
+    pipeline::requireLabelledMesh(truth);
+  } catch (const InputError& e) {
+    log::warning(std::string("ground truth beside the source not used: ") + e.what());
+    truth.clear();
   }
-  requireWritableFolder(out);
+  return truth;
+}
 
-  nlohmann::json timings = {{"source", options.source}, {"interrupted", false}};
-  nlohmann::json stages = nlohmann::json::array();
-  std::vector<std::string> not_produced;
-  const auto writeTimings = [&] {
-    timings["stages"] = stages;
-    timings["total_s"] = secondsSince(start);
-    timings["not_produced"] = not_produced;
-    writeFileAtomically(out / "timings.json", timings.dump(1) + "\n");
-  };
-  // Stops the run after a Ctrl-C: what is written stays, the rest is listed as not produced. Once
-  // hypotheses.json exists, the report is written too, with a notice of what is missing.
-  const auto stopHere = [&](std::vector<std::string> missing) {
-    timings["interrupted"] = true;
-    const bool report = fs::exists(out / "hypotheses.json");
+/// One scan: the results so far, in memory, and the timings of its stages.
+class ScanRun {
+ public:
+  explicit ScanRun(const ScanCommandOptions& options)
+      : options_(options), out_(options.out), start_(SteadyClock::now()) {
+    timings_.source = options.source;
+    results_.settings = options.settings;
+  }
+
+  void stage(const char* name, double seconds) { timings_.stages.push_back({name, seconds}); }
+
+  /// After a Ctrl-C: what is written stays, the rest is listed as not produced. Once
+  /// hypotheses.json exists, the report is written too, with a notice of what is missing.
+  int stopHere(std::vector<std::string> missing) {
+    timings_.interrupted = true;
+    const bool report = results_.hypotheses.has_value();
     if (report) std::erase(missing, std::string("report.html"));
-    not_produced = missing;
-    writeTimings();
-    if (report) writeReport(out);
+    timings_.not_produced = missing;
+    finishTimings();
+    report::writeSettings(out_ / report::kSettingsFile, *results_.settings);
+    if (report) report::writeReport(results_, out_);
+    report::writeTimings(out_ / report::kTimingsFile, timings_);
     std::string list;
     for (const std::string& m : missing) list += (list.empty() ? "" : ", ") + m;
     std::printf("stopped by    Ctrl-C / SIGTERM; not produced: %s\n", list.c_str());
-    std::printf("timings       %s\n", (out / "timings.json").string().c_str());
+    std::printf("timings       %s\n", (out_ / report::kTimingsFile).c_str());
     return kExitInterrupted;
-  };
+  }
+
+  pipeline::FusedScene fuse() {
+    pipeline::FuseLimits limits = options_.limits;
+    limits.progress_label = "scan [1/4] fusing frames";
+    limits.live_stop_ends_capture = true;
+    limits.stop = &StopSignals::flag();
+    pipeline::FusedScene fused = pipeline::fuseSource(options_.fuse, limits);
+    const pipeline::FuseStats& s = fused.stats;
+    stage("fuse", s.fuse_s);
+    stage("mesh", s.mesh_s);
+    timings_.source = s.source_description;
+    timings_.frames = report::FrameCounts{s.frames_read, s.frames_fused, s.frames_lost,
+                                          s.frames_without_depth, s.bad_frames};
+    timings_.mesh_vertices = fused.mesh.positions.size();
+    timings_.mesh_faces = fused.mesh.triangles.size();
+    timings_.sensor_lost = s.sensor_lost;
+    removeStaleOutputs(out_);
+    mesh_bytes_ = writeFused(out_, fused);
+    addFusionSettings(*results_.settings, fused, options_.fuse);
+    results_.trajectory = fused.trajectory;
+    printFuseSummary(fused, out_);
+    return fused;
+  }
+
+  discovery::SceneDiscovery discover(TriangleMesh mesh, const fs::path& truth) {
+    log::info("scan [2/4] discovering objects");
+    DiscoverCommandOptions options = options_.discover;
+    options.out = out_;
+    discovery::SceneDiscoveryOptions library = sceneDiscoveryOptions(options);
+    std::vector<discovery::SceneInput> scenes;
+    scenes.push_back(discovery::sceneFromMesh((out_ / report::kMeshFile).string(), std::move(mesh),
+                                              discovery::contentHashOfBytes(mesh_bytes_)));
+    mesh_bytes_.clear();
+    discovery::SceneDiscovery run = discovery::discoverScenes(std::move(scenes), library);
+    results_.hypotheses = writeDiscoveryResults(options, run);
+    results_.settings->catalog = catalogUse(run);
+    stage("discover", run.seconds);
+    timings_.hypotheses = run.ranked.size();
+    std::printf("hypotheses    %zu ranked -> %s, %s\n", run.ranked.size(),
+                (out_ / report::kHypothesesFile).c_str(), (out_ / report::kObjectsFolder).c_str());
+    if (!truth.empty()) evaluate(truth, run);
+    return run;
+  }
+
+  /// Renders and writes the pictures; false when stopped.
+  bool pictures(const TriangleMesh& mesh) {
+    if (results_.hypotheses->hypotheses.empty()) {
+      std::printf("renders       none: no hypothesis to show\n");
+      return true;
+    }
+    log::info("scan [3/4] rendering pictures");
+    pipeline::PictureOptions pictures = options_.pictures;
+    pictures.progress_label = "scan [3/4] rendering pictures";
+    pictures.stop = &StopSignals::flag();
+    const pipeline::PicturesOutcome outcome =
+        pipeline::renderPictures(mesh, &*results_.trajectory, results_.hypotheses->hypotheses,
+                                 pictures, (out_ / report::kHypothesesFile).string());
+    stage("render", outcome.seconds);
+    if (outcome.interrupted) return false;
+    report::writePictures(out_, outcome.pictures);
+    results_.pictures = outcome.pictures;
+    printPictures("renders", outcome, out_);
+    return true;
+  }
+
+  fs::path reportAndTimings() {
+    log::info("scan [4/4] writing the report");
+    const auto report_start = SteadyClock::now();
+    finishTimings();  // the report shows the timings up to it
+    report::writeSettings(out_ / report::kSettingsFile, *results_.settings);
+    const fs::path report = report::writeReport(results_, out_);
+    stage("report", secondsSince(report_start));
+    finishTimings();
+    report::writeTimings(out_ / report::kTimingsFile, timings_);
+    std::string per_stage;
+    for (const report::StageTime& s : timings_.stages) {
+      char part[64];
+      std::snprintf(part, sizeof part, "%s%s %.1f s", per_stage.empty() ? "" : ", ", s.name.c_str(),
+                    s.seconds);
+      per_stage += part;
+    }
+    std::printf("time          %s; total %.1f s\n", per_stage.c_str(), *timings_.total_s);
+    return report;
+  }
+
+ private:
+  void evaluate(const fs::path& truth, const discovery::SceneDiscovery& run) {
+    const auto start = SteadyClock::now();
+    results_.evaluation = pipeline::evaluateAgainstTruth(truth, run, options_.min_iou);
+    report::writeEvaluation(out_ / report::kEvaluationFile, *results_.evaluation);
+    stage("evaluation", secondsSince(start));
+    std::printf("ground truth  %zu of %zu objects found at IoU %.1f, AP %.3f (%s)\n",
+                *results_.evaluation->found, *results_.evaluation->objects, options_.min_iou,
+                results_.evaluation->ap, truth.c_str());
+  }
+
+  void finishTimings() {
+    timings_.total_s = secondsSince(start_);
+    results_.timings = timings_;
+  }
+
+  const ScanCommandOptions& options_;
+  fs::path out_;
+  SteadyClock::time_point start_;
+  report::ScanResults results_;
+  report::Timings timings_;
+  std::string mesh_bytes_;  ///< mesh.ply's, until discovery has hashed them
+};
+
+}  // namespace
+
+int runScan(ScanCommandOptions options) {
+  if (options.source.empty()) options.source = "live";
+  options.fuse.source = options.source;
+  // Settings, the ground truth and the model are checked before anything is opened or written.
+  options.fuse.config.validate();
+  options.pictures.validate();
+  const fs::path truth = groundTruthOf(options);
+  (void)sceneDiscoveryOptions(options.discover);
+  requireWritableFolder(options.out);
 
   StopSignals signals;
-  options.limits.progress_label = "scan [1/4] fusing frames";
-  options.limits.live_stop_ends_capture = true;
-  options.limits.before_writing = [&out] { removeStaleOutputs(out); };
-  const FuseOutcome fused = fuseSource(options.fuse, options.limits);
-  stages.push_back({{"name", "fuse"}, {"seconds", fused.fuse_s}});
-  stages.push_back({{"name", "mesh"}, {"seconds", fused.mesh_s}});
-  timings["source"] = fused.source_description;
-  timings["frames"] = {{"read", fused.frames_read},
-                       {"fused", fused.frames_fused},
-                       {"lost", fused.frames_lost},
-                       {"without_depth", fused.frames_without_depth},
-                       {"unreadable", fused.bad_frames}};
-  timings["mesh"] = {{"vertices", fused.mesh_vertices}, {"faces", fused.mesh_triangles}};
-  printFuseSummary(fused);
-  if (fused.interrupted) {
+  ScanRun run(options);
+  pipeline::FusedScene fused = run.fuse();
+  if (fused.stats.interrupted) {
     // On a sensor, Ctrl-C is how capture ends: the scan goes on with what was fused.
-    if (!fused.live) {
+    if (!fused.stats.live) {
       std::vector<std::string> missing = {"hypotheses.json", "objects/", "renders/", "report.html"};
       if (!truth.empty()) missing.insert(missing.begin() + 2, "evaluation.json");
-      return stopHere(missing);
+      return run.stopHere(missing);
     }
-    std::printf("capture       ended by Ctrl-C after %zu frames\n", fused.frames_read);
+    std::printf("capture       ended by Ctrl-C after %zu frames\n", fused.stats.frames_read);
   }
-  if (!fused.sensor_lost.empty()) timings["sensor_lost"] = fused.sensor_lost;
-
-  log::info("scan [2/4] discovering objects");
-  const DiscoverOutcome discovered = discoverScenes(options.discover);
-  stages.push_back({{"name", "discover"}, {"seconds", discovered.seconds}});
-  timings["hypotheses"] = discovered.ranked.size();
-  std::printf("hypotheses    %zu ranked -> %s, %s\n", discovered.ranked.size(),
-              (out / "hypotheses.json").string().c_str(), (out / "objects").string().c_str());
-
-  std::optional<Evaluation> evaluation;
-  if (!truth.empty()) {
-    const auto eval_start = Clock::now();
-    evaluation = evaluateAgainstTruth(truth, discovered, options.min_iou);
-    writeFileAtomically(out / "evaluation.json", evaluation->json.dump(1) + "\n");
-    stages.push_back({{"name", "evaluation"}, {"seconds", secondsSince(eval_start)}});
-    std::printf("ground truth  %zu of %zu objects found at IoU %.1f, AP %.3f (%s)\n",
-                evaluation->found, evaluation->objects, options.min_iou, evaluation->ap,
-                truth.string().c_str());
-  }
-  if (StopSignals::stopRequested()) return stopHere({"renders/", "report.html"});
-
-  RenderOutcome rendered;
-  if (discovered.ranked.empty()) {
-    std::printf("renders       none: no hypothesis to show\n");
-  } else {
-    log::info("scan [3/4] rendering pictures");
-    options.render.progress_label = "scan [3/4] rendering pictures";
-    rendered = renderResults(options.render);
-    stages.push_back({{"name", "render"}, {"seconds", rendered.seconds}});
-    if (rendered.interrupted) return stopHere({"renders/", "report.html"});
-    std::string visible;
-    for (std::size_t rank : rendered.visible) {
-      visible += (visible.empty() ? "#" : ", #") + std::to_string(rank);
-    }
-    std::printf("renders       %zu pictures (%s view; painted top %zu, visible: %s) -> %s\n",
-                rendered.images, render::toString(rendered.view), rendered.painted,
-                visible.empty() ? "none" : visible.c_str(), rendered.renders.string().c_str());
-  }
-
-  log::info("scan [4/4] writing the report");
-  const auto report_start = Clock::now();
-  stages.push_back({{"name", "report"}, {"seconds", 0.0}});
-  writeTimings();  // the report shows the timings, so they exist before it
-  const fs::path report = writeReport(out);
-  stages.back()["seconds"] = secondsSince(report_start);
-  writeTimings();
-
-  std::string per_stage;
-  for (const nlohmann::json& s : stages) {
-    char part[64];
-    std::snprintf(part, sizeof part, "%s%s %.1f s", per_stage.empty() ? "" : ", ",
-                  s["name"].get<std::string>().c_str(), s["seconds"].get<double>());
-    per_stage += part;
-  }
-  std::printf("time          %s; total %.1f s\n", per_stage.c_str(), secondsSince(start));
-  std::printf("report        %s\n", report.string().c_str());
+  const discovery::SceneDiscovery found = run.discover(std::move(fused.mesh), truth);
+  if (StopSignals::stopRequested()) return run.stopHere({"renders/", "report.html"});
+  if (!run.pictures(found.scenes.at(0).mesh)) return run.stopHere({"renders/", "report.html"});
+  const fs::path report = run.reportAndTimings();
+  std::printf("report        %s\n", report.c_str());
   // A sensor lost mid-capture still gives every output, from the frames before it, and exit 1.
-  return reportSensorLoss(fused);
+  return reportSensorLoss(fused.stats);
 }
 
 }  // namespace objscan::app

@@ -1,8 +1,6 @@
 #pragma once
 
-#include <cstddef>
 #include <filesystem>
-#include <optional>
 #include <string>
 
 #include "discover_command.h"
@@ -14,19 +12,21 @@ namespace objscan::app {
 struct ScanCommandOptions {
   std::string source;  ///< as fuse takes it; empty: the first live sensor
   std::filesystem::path out;
-  FuseCommandOptions fuse;          ///< source and out are set from the above
-  FuseLimits limits;                ///< --frames, --seconds
-  DiscoverCommandOptions discover;  ///< meshes and out are set by the scan
-  RenderCommandOptions render;      ///< dir is set by the scan
+  pipeline::FuseOptions fuse;         ///< source is set from the above
+  pipeline::FuseLimits limits;        ///< --frames, --seconds
+  DiscoverCommandOptions discover;    ///< meshes and out are set by the scan
+  pipeline::PictureOptions pictures;  ///< --top, --size, --view, --ranks-image
   /// A ground-truth scene mesh with per-vertex object_id (objscan synth's scene_gt.ply). Empty:
   /// X.scene_gt.ply beside a recording X.oni, or scene_gt.ply in a recording folder, if present.
   std::filesystem::path ground_truth;
   bool no_ground_truth = false;
-  double min_iou = 0.7;  ///< a hypothesis finds an object at this IoU (the paper's label)
+  double min_iou = 0.7;       ///< a hypothesis finds an object at this IoU (the paper's label)
+  report::Settings settings;  ///< the command line's, for OUT/settings.json
 };
 
-/// `objscan scan`: fuse, discover, render and report into OUT in one run (see the README's
-/// "objscan scan"). Returns the exit code.
+/// `objscan scan`: fuse, discover, evaluate, render and report into OUT in one run, passing the
+/// values from stage to stage and writing each file once (see docs/scan_and_report.md). Returns
+/// the exit code.
 int runScan(ScanCommandOptions options);
 
 }  // namespace objscan::app

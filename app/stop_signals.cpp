@@ -23,7 +23,7 @@ StopSignals::~StopSignals() {
   sigaction(SIGTERM, &old_term_, nullptr);
 }
 
-const std::atomic<bool>& StopSignals::flag() { return g_stop; }
+std::atomic<bool>& StopSignals::flag() { return g_stop; }
 
 void StopSignals::clear() { g_stop.store(false); }
 

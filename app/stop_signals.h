@@ -2,20 +2,12 @@
 
 #include <atomic>
 #include <csignal>
-#include <stdexcept>
 
 namespace objscan::app {
 
 /// While alive, Ctrl-C (SIGINT) and SIGTERM set stopRequested() instead of killing the process, so
 /// a long command can finish what it has and write valid outputs; the previous handlers come back
 /// when it goes.
-/// Ctrl-C / SIGTERM came before there was anything to write (no frame fused yet). The command
-/// line maps it to exit code 130.
-class Interrupted : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
-
 class StopSignals {
  public:
   StopSignals();
@@ -23,8 +15,9 @@ class StopSignals {
   StopSignals(const StopSignals&) = delete;
   StopSignals& operator=(const StopSignals&) = delete;
 
-  /// Set by the handler; an atomic that library calls (capture::recordSession) can poll.
-  static const std::atomic<bool>& flag();
+  /// Set by the handler; an atomic that library calls (capture::recordSession, the pipeline's
+  /// stages) poll, and that fusion clears when a stop ends a live capture.
+  static std::atomic<bool>& flag();
   static bool stopRequested() { return flag().load(); }
   /// Forgets a stop already requested: `objscan scan` on a sensor takes the first Ctrl-C as the
   /// end of capture and goes on, so only a later one stops the run.

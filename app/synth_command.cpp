@@ -3,11 +3,11 @@
 #include <cstdio>
 #include <stdexcept>
 
+#include "objscan/capture/synthetic/synthetic_recording.h"
+#include "objscan/capture/synthetic/synthetic_scene.h"
 #include "objscan/core/intrinsics.h"
 #include "objscan/core/log.h"
 #include "objscan/core/progress.h"
-#include "objscan/render/synthetic_recording.h"
-#include "objscan/render/synthetic_scene.h"
 
 namespace objscan::app {
 
@@ -15,29 +15,29 @@ void runSynth(const SynthOptions& options) {
   if (options.noise != "on" && options.noise != "off") {
     throw std::invalid_argument("--noise must be 'on' or 'off', not '" + options.noise + "'");
   }
-  render::checkNewFolder(options.out);  // before any work: a bad --out costs nothing
-  render::SceneConfig scene_config;
-  scene_config.preset = render::scenePresetFromString(options.preset);
+  capture::checkNewFolder(options.out);  // before any work: a bad --out costs nothing
+  capture::SceneConfig scene_config;
+  scene_config.preset = capture::scenePresetFromString(options.preset);
   scene_config.objects = options.objects;
   scene_config.seed = options.seed;
   scene_config.object_dir = options.object_dir;
-  render::HandheldPathConfig path_config;
+  capture::HandheldPathConfig path_config;
   path_config.frames = options.frames;
   path_config.seed = options.seed;
-  render::SensorModelConfig sensor;
+  capture::SensorModelConfig sensor;
   sensor.enabled = options.noise == "on";
   const Intrinsics intrinsics = options.intrinsics.empty() ? Intrinsics::xtionDefault()
                                                            : readIntrinsicsJson(options.intrinsics);
 
-  const render::SceneAndPath composed =
-      render::composeSceneSeenAlongPath(scene_config, path_config, intrinsics);
-  const render::SyntheticScene& scene = composed.scene;
+  const capture::SceneAndPath composed =
+      capture::composeSceneSeenAlongPath(scene_config, path_config, intrinsics);
+  const capture::SyntheticScene& scene = composed.scene;
   const Trajectory& path = composed.path;
-  std::vector<render::Visibility> visibility;
+  std::vector<capture::Visibility> visibility;
   {
     ProgressBar progress("rendering frames", path.size());
-    visibility = render::writeSyntheticRecording(scene, path, intrinsics, sensor, options.seed,
-                                                 options.out, &progress);
+    visibility = capture::writeSyntheticRecording(scene, path, intrinsics, sensor, options.seed,
+                                                  options.out, &progress);
   }
   std::size_t never_seen = 0;
   for (const auto& v : visibility) {
@@ -48,7 +48,7 @@ void runSynth(const SynthOptions& options) {
     }
   }
   std::printf("scene         %s, %zu objects, seed %llu, noise %s\n",
-              render::toString(scene.preset), scene.objects.size(),
+              capture::toString(scene.preset), scene.objects.size(),
               static_cast<unsigned long long>(options.seed), options.noise.c_str());
   std::printf("mesh          %zu vertices, %zu triangles\n", scene.mesh.positions.size(),
               scene.mesh.triangles.size());

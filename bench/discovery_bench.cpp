@@ -44,6 +44,7 @@
 #include "objscan/core/ply_io.h"
 #include "objscan/discovery/catalog.h"
 #include "objscan/discovery/discover.h"
+#include "objscan/discovery/scenes.h"
 
 namespace {
 

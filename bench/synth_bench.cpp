@@ -20,9 +20,9 @@
 #include <opencv2/imgproc.hpp>
 
 #include "bench_main.h"
+#include "objscan/capture/synthetic/sensor_model.h"
+#include "objscan/capture/synthetic/synthetic_scene.h"
 #include "objscan/render/offscreen_renderer.h"
-#include "objscan/render/sensor_model.h"
-#include "objscan/render/synthetic_scene.h"
 
 namespace {
 
@@ -76,25 +76,25 @@ int run(int argc, char** argv) {
     }
   }
   using namespace objscan;
-  render::SceneConfig scene_config;
+  capture::SceneConfig scene_config;
   scene_config.objects = objects;
   const auto t0 = Clock::now();
-  const render::SyntheticScene scene = render::composeScene(scene_config);
-  render::HandheldPathConfig path_config;
+  const capture::SyntheticScene scene = capture::composeScene(scene_config);
+  capture::HandheldPathConfig path_config;
   path_config.frames = frames;
-  const Trajectory path = render::makeHandheldPath(scene, path_config);
+  const Trajectory path = capture::makeHandheldPath(scene, path_config);
   const Intrinsics in = Intrinsics::xtionDefault();
   render::OffscreenRenderer renderer(in);
   renderer.setMesh(scene.mesh);
   const auto t1 = Clock::now();
 
   double render_ms = 0, noise_ms = 0, encode_ms = 0;
-  const render::SensorModelConfig sensor;
+  const capture::SensorModelConfig sensor;
   for (std::size_t i = 0; i < path.size(); ++i) {
     const auto a = Clock::now();
     const render::RenderedView view = renderer.render(path.poses[i].T_W_C);
     const auto b = Clock::now();
-    const cv::Mat depth = render::applySensorModel(view, in, sensor, i);
+    const cv::Mat depth = capture::applySensorModel(view, in, sensor, i);
     const auto c = Clock::now();
     std::vector<uchar> buffer;
     cv::Mat depth16, label16;

@@ -35,8 +35,8 @@
 #include <vector>
 
 #include "objscan/capture/frame_source.h"
+#include "objscan/capture/synthetic/synthetic_source.h"
 #include "objscan/capture/virtual_sensor.h"
-#include "objscan/render/synthetic_source.h"
 
 namespace {
 
@@ -227,7 +227,7 @@ class VirtualDevice : public oni::driver::DeviceBase {
   void run(std::promise<std::string> opened) {
     std::unique_ptr<FrameSource> source;
     try {
-      source = objscan::render::openSynthOrFolderSource(uri_.source);
+      source = objscan::capture::openSynthOrFolderSource(uri_.source);
       const objscan::capture::SourceInfo& info = source->info();
       intrinsics_ = info.intrinsics;
       description_ = info.description;

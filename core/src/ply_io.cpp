@@ -771,7 +771,7 @@ TriangleMesh readPly(const fs::path& path, PlyReadReport* report_out) {
   return mesh;
 }
 
-void writePly(const fs::path& path, const TriangleMesh& mesh, PlyFormat format) {
+std::string encodePly(const TriangleMesh& mesh, PlyFormat format) {
   mesh.validate();
   const bool normals = mesh.hasNormals();
   const bool colors = mesh.hasColors();
@@ -846,7 +846,11 @@ void writePly(const fs::path& path, const TriangleMesh& mesh, PlyFormat format) 
       for (int k = 0; k < 3; ++k) putBinary(out, static_cast<std::int32_t>(t[k]), swap);
     }
   }
-  writeFileAtomically(path, out);
+  return out;
+}
+
+void writePly(const fs::path& path, const TriangleMesh& mesh, PlyFormat format) {
+  writeFileAtomically(path, encodePly(mesh, format));
 }
 
 }  // namespace objscan

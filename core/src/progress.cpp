@@ -6,19 +6,16 @@
 #include <exception>
 #include <string>
 
+#include "objscan/core/clock.h"
 #include "objscan/core/log.h"
 
 namespace objscan {
 namespace {
 
-using Clock = std::chrono::steady_clock;
+using Clock = SteadyClock;
 constexpr auto kRedrawInterval = std::chrono::milliseconds(100);
 constexpr auto kLineInterval = std::chrono::seconds(10);
 constexpr int kBarWidth = 30;
-
-double secondsSince(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 }  // namespace
 
@@ -26,7 +23,7 @@ ProgressBar::ProgressBar(std::string label, std::size_t total, Style style, std:
     : label_(std::move(label)),
       total_(total),
       redraw_(style == Style::kRedraw || (style == Style::kAuto && ::isatty(::fileno(out)) == 1)),
-      silent_(!log::enabled(log::Level::kInfo)),
+      silent_(label_.empty() || !log::enabled(log::Level::kInfo)),
       out_(out),
       start_(Clock::now()),
       last_draw_(start_),

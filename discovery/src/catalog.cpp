@@ -561,26 +561,43 @@ std::size_t Catalog::segmentCount() const {
   return n;
 }
 
+namespace {
+
+// FNV-1a, 64 bits (Fowler, Noll, Vo): one xor and one multiply per byte.
+constexpr std::uint64_t kFnvOffset = 0xcbf29ce484222325ull;
+
+std::uint64_t fnv1a(std::uint64_t h, const char* bytes, std::size_t n) {
+  for (std::size_t i = 0; i < n; ++i)
+    h = (h ^ static_cast<unsigned char>(bytes[i])) * 0x100000001b3ull;
+  return h;
+}
+
+std::string hex16(std::uint64_t h) {
+  static constexpr char kHex[] = "0123456789abcdef";
+  std::string out(16, '0');
+  for (int i = 15; i >= 0; --i, h >>= 4) out[static_cast<std::size_t>(i)] = kHex[h & 0xfu];
+  return out;
+}
+
+}  // namespace
+
 std::string contentHash(const fs::path& file) {
   std::error_code ec;
   if (fs::is_directory(file, ec)) throw InputError(file, "is a folder, not a mesh file");
   std::ifstream in(file, std::ios::binary);
   if (!in) throw InputError(file, "cannot be opened: " + std::string(std::strerror(errno)));
-  // FNV-1a, 64 bits (Fowler, Noll, Vo): one xor and one multiply per byte.
-  std::uint64_t h = 0xcbf29ce484222325ull;
+  std::uint64_t h = kFnvOffset;
   std::vector<char> buffer(1 << 20);
   while (in) {
     in.read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
-    const auto n = static_cast<std::size_t>(in.gcount());
-    for (std::size_t i = 0; i < n; ++i) {
-      h = (h ^ static_cast<unsigned char>(buffer[i])) * 0x100000001b3ull;
-    }
+    h = fnv1a(h, buffer.data(), static_cast<std::size_t>(in.gcount()));
   }
   if (in.bad()) throw InputError(file, "could not be read to the end");
-  static constexpr char kHex[] = "0123456789abcdef";
-  std::string out(16, '0');
-  for (int i = 15; i >= 0; --i, h >>= 4) out[static_cast<std::size_t>(i)] = kHex[h & 0xfu];
-  return out;
+  return hex16(h);
+}
+
+std::string contentHashOfBytes(std::string_view bytes) {
+  return hex16(fnv1a(kFnvOffset, bytes.data(), bytes.size()));
 }
 
 }  // namespace objscan::discovery

@@ -13,17 +13,14 @@
 #include <tbb/parallel_for.h>
 #include <tbb/partitioner.h>
 
+#include "objscan/core/clock.h"
 #include "objscan/discovery/segmentation.h"
 
 namespace objscan::discovery {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
-double msSince(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
+using Clock = SteadyClock;
 
 /// CPU time of the process (all threads) or of the calling thread, milliseconds.
 double cpuMs(clockid_t clock) {
@@ -37,7 +34,7 @@ struct Stopwatch {
   Clock::time_point wall = Clock::now();
   double cpu = cpuMs(CLOCK_PROCESS_CPUTIME_ID);
   void stop(double* wall_ms, double* cpu_ms) {
-    *wall_ms = msSince(wall);
+    *wall_ms = millisecondsSince(wall);
     *cpu_ms = cpuMs(CLOCK_PROCESS_CPUTIME_ID) - cpu;
     wall = Clock::now();
     cpu = cpuMs(CLOCK_PROCESS_CPUTIME_ID);
@@ -281,17 +278,6 @@ std::vector<Hypothesis> rankCandidates(const SceneCandidates& candidates,
   scores.reserve(candidates.measures.size());
   for (const ShapeMeasures& m : candidates.measures) scores.push_back(model.score(m));
   return suppress(candidates, scores, max_iou);
-}
-
-std::vector<Hypothesis> discoverObjects(const TriangleMesh& mesh, const DiscoveryConfig& config,
-                                        DiscoveryTimings* timings) {
-  SceneCandidates candidates = findCandidates(mesh, config);
-  Stopwatch watch;
-  const std::vector<double> scores = averageScores(candidates.measures);
-  std::vector<Hypothesis> out = suppress(candidates, scores, config.max_iou);
-  watch.stop(&candidates.timings.suppress_ms, &candidates.timings.suppress_cpu_ms);
-  if (timings) *timings = candidates.timings;
-  return out;
 }
 
 }  // namespace objscan::discovery

@@ -5,6 +5,7 @@
 #include <iomanip>
 #include <numeric>
 #include <random>
+#include <set>
 #include <sstream>
 #include <stdexcept>
 
@@ -274,6 +275,28 @@ void writePrPlot(const EvalResult& result, const std::filesystem::path& png, int
   if (!cv::imencode(".png", img, bytes)) throw OutputError(png, "could not encode the plot");
   writeFileAtomically(png,
                       std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
+}
+
+RankingEvaluation evaluateRanking(const GroundTruthObjects& truth,
+                                  const std::vector<std::vector<std::int32_t>>& ranked,
+                                  double min_iou) {
+  RankingEvaluation e;
+  e.min_iou = min_iou;
+  e.objects = truth.objectIds().size();
+  std::set<std::int32_t> found;
+  std::vector<int> hits;
+  for (std::size_t k = 0; k < ranked.size(); ++k) {
+    RankMatch r;
+    r.match = truth.bestMatch(ranked[k]);
+    r.found = isObject(r.match, min_iou) && found.insert(r.match.object_id).second;
+    r.precision = static_cast<double>(found.size()) / static_cast<double>(k + 1);
+    r.recall = e.objects ? static_cast<double>(found.size()) / static_cast<double>(e.objects) : 0.0;
+    hits.push_back(r.found);
+    e.ranks.push_back(r);
+  }
+  e.found = found.size();
+  e.ap = averagePrecisionOfRanking(hits, e.objects);
+  return e;
 }
 
 }  // namespace objscan::discovery

@@ -265,14 +265,22 @@ double averagePrecision(const std::vector<double>& scores, const std::vector<int
     if (scores[a] != scores[b]) return scores[a] > scores[b];
     return labels[a] < labels[b];
   });
+  std::vector<int> hits(order.size());
+  for (std::size_t rank = 0; rank < order.size(); ++rank) hits[rank] = labels[order[rank]] == 1;
+  const auto positives = static_cast<std::size_t>(std::count(hits.begin(), hits.end(), 1));
+  return positives > 0 ? averagePrecisionOfRanking(hits, positives)
+                       : std::numeric_limits<double>::quiet_NaN();
+}
+
+double averagePrecisionOfRanking(const std::vector<int>& hits, std::size_t positives) {
   double sum = 0.0;
-  std::size_t hits = 0;
-  for (std::size_t rank = 0; rank < order.size(); ++rank) {
-    if (labels[order[rank]] != 1) continue;
-    ++hits;
-    sum += static_cast<double>(hits) / static_cast<double>(rank + 1);
+  std::size_t found = 0;
+  for (std::size_t rank = 0; rank < hits.size(); ++rank) {
+    if (hits[rank] != 1) continue;
+    ++found;
+    sum += static_cast<double>(found) / static_cast<double>(rank + 1);
   }
-  return hits > 0 ? sum / static_cast<double>(hits) : std::numeric_limits<double>::quiet_NaN();
+  return positives > 0 ? sum / static_cast<double>(positives) : 0.0;
 }
 
 ObjectnessModel ObjectnessModel::average(const MeasureNormaliser& normaliser,

@@ -7,15 +7,13 @@
 
 #include <opencv2/core.hpp>
 
+#include "objscan/core/clock.h"
+
 namespace objscan::fusion {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
-double msSince(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
+using Clock = SteadyClock;
 
 /// Where each ray of pyramid level `level` starts its search: the nearest reading of the
 /// 2^level x 2^level pixels the ray passes between (0 if none), the rule the frame's pyramid
@@ -86,7 +84,7 @@ FrameOutcome Fusion::process(const RgbdFrame& frame, const std::optional<Pose>& 
     out.status = FrameStatus::kNoDepth;
     out.reason = "no depth readings between " + std::to_string(config_.preprocess.min_depth_m) +
                  " and " + std::to_string(config_.preprocess.max_depth_m) + " m";
-    out.timings.preprocess_ms = msSince(start);
+    out.timings.preprocess_ms = millisecondsSince(start);
     ++skipped_;
     return out;
   }
@@ -95,13 +93,13 @@ FrameOutcome Fusion::process(const RgbdFrame& frame, const std::optional<Pose>& 
   if (given_T_W_C) {
     pose = *given_T_W_C;
     out.status = FrameStatus::kGivenPose;
-    out.timings.preprocess_ms = msSince(start);
+    out.timings.preprocess_ms = millisecondsSince(start);
   } else if (volume_.blockCount() == 0) {
     out.status = FrameStatus::kFirst;
-    out.timings.preprocess_ms = msSince(start);
+    out.timings.preprocess_ms = millisecondsSince(start);
   } else {
     buildPyramid(depth, intrinsics_, config_.preprocess, &pyramid_);
-    out.timings.preprocess_ms = msSince(start);
+    out.timings.preprocess_ms = millisecondsSince(start);
     start = Clock::now();
     if (!model_current_) {
       raycast(volume_, levelIntrinsics(intrinsics_, model_level_), last_good_,
@@ -110,7 +108,7 @@ FrameOutcome Fusion::process(const RgbdFrame& frame, const std::optional<Pose>& 
       model_current_ = true;
     }
     out.tracking = trackFrame(pyramid_, model_, last_good_, config_.tracking);
-    out.timings.track_ms = msSince(start);
+    out.timings.track_ms = millisecondsSince(start);
     if (!out.tracking.ok) {
       out.status = FrameStatus::kLost;
       out.reason = out.tracking.failure;
@@ -123,7 +121,7 @@ FrameOutcome Fusion::process(const RgbdFrame& frame, const std::optional<Pose>& 
 
   start = Clock::now();
   out.blocks_updated = volume_.integrate(depth, frame.color_rgb, intrinsics_, pose);
-  out.timings.integrate_ms = msSince(start);
+  out.timings.integrate_ms = millisecondsSince(start);
   last_good_ = pose;
   out.T_W_C = pose;
   trajectory_.poses.push_back({frame.stamp_s, pose});
@@ -136,7 +134,7 @@ FrameOutcome Fusion::process(const RgbdFrame& frame, const std::optional<Pose>& 
             config_.preprocess.min_depth_m, config_.preprocess.max_depth_m, false,
             model_level_ > 0 ? &hint_ : &depth, &model_);
     model_current_ = true;
-    out.timings.raycast_ms = msSince(start);
+    out.timings.raycast_ms = millisecondsSince(start);
   }
   return out;
 }

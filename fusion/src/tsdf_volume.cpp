@@ -37,12 +37,17 @@ void checkImages(const cv::Mat& depth_m, const cv::Mat& color_rgb, const Intrins
 
 }  // namespace
 
+float VolumeConfig::truncation() const {
+  return truncation_m.value_or(std::max(0.03f, 3.0f * voxel_size_m));
+}
+
 void VolumeConfig::validate() const {
   if (!(std::isfinite(voxel_size_m) && voxel_size_m >= 0.001f && voxel_size_m <= 0.5f)) {
     throw std::invalid_argument("the voxel size must be between 1 mm and 50 cm");
   }
-  if (!(std::isfinite(truncation_m) && truncation_m >= 2.0f * voxel_size_m &&
-        truncation_m <= 1.0f)) {
+  const float truncation_used = truncation();
+  if (!(std::isfinite(truncation_used) && truncation_used >= 2.0f * voxel_size_m &&
+        truncation_used <= 1.0f)) {
     throw std::invalid_argument(
         "the truncation distance must span at least 2 voxels and be at most 1 m");
   }
@@ -57,7 +62,7 @@ void VolumeConfig::validate() const {
 TsdfVolume::TsdfVolume(const VolumeConfig& config) : config_(config), impl_(new Impl) {
   config_.validate();
   impl_->voxel_size_m = config_.voxel_size_m;
-  impl_->truncation_m = config_.truncation_m;
+  impl_->truncation_m = config_.truncation();
 }
 
 TsdfVolume::~TsdfVolume() = default;

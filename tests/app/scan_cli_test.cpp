@@ -22,6 +22,7 @@
 #include "objscan/core/ply_io.h"
 #include "objscan/core/trajectory.h"
 #include "objscan/render/offscreen_renderer.h"
+#include "objscan/report/results_io.h"
 #include "test_support.h"
 
 namespace objscan {
@@ -36,32 +37,16 @@ using testing::objscan;
 
 nlohmann::json readJson(const fs::path& file) { return nlohmann::json::parse(readWholeFile(file)); }
 
-/// The overview's camera as render wrote it.
-struct Camera {
-  Pose T_W_C = Pose::Identity();
-  Intrinsics intrinsics;
-};
-
-Camera readCamera(const fs::path& file) {
-  const nlohmann::json j = readJson(file);
-  Camera c;
-  Eigen::Matrix4f T;
-  for (int r = 0; r < 4; ++r) {
-    for (int k = 0; k < 4; ++k) T(r, k) = j.at("T_W_C").at(r).at(k).get<float>();
-  }
-  c.T_W_C.matrix() = T;
-  const nlohmann::json& in = j.at("intrinsics");
-  c.intrinsics.fx_px = in.at("fx").get<double>();
-  c.intrinsics.fy_px = in.at("fy").get<double>();
-  c.intrinsics.cx_px = in.at("cx").get<double>();
-  c.intrinsics.cy_px = in.at("cy").get<double>();
-  c.intrinsics.width_px = in.at("width").get<int>();
-  c.intrinsics.height_px = in.at("height").get<int>();
-  return c;
+/// The overview's camera as render wrote it, through the results model's reader.
+report::OverviewCamera readCamera(const fs::path& results) {
+  const std::optional<report::OverviewCamera> camera = report::readPictures(results, {}).camera;
+  if (!camera) throw std::runtime_error(results.string() + ": no overview_camera.json");
+  return *camera;
 }
 
 /// Renders `mesh` with `labels` from the camera and returns the label image.
-cv::Mat renderLabels(TriangleMesh mesh, std::vector<std::int32_t> labels, const Camera& camera) {
+cv::Mat renderLabels(TriangleMesh mesh, std::vector<std::int32_t> labels,
+                     const report::OverviewCamera& camera) {
   mesh.labels = std::move(labels);
   mesh.colors.clear();
   render::OffscreenRenderer renderer(camera.intrinsics, 0.005f, 200.0f);
@@ -123,6 +108,7 @@ TEST_F(ScanCli, WritesEveryOutputAndEndsWithTheReportsPath) {
   EXPECT_EQ(close.size(), cv::Size(480, 360));
   EXPECT_FALSE(cv::imread((out_ / "renders" / "contact_sheet.png").string()).empty());
   EXPECT_TRUE(fs::is_regular_file(out_ / "report.html"));
+  EXPECT_TRUE(fs::is_regular_file(out_ / "settings.json"));
 
   const nlohmann::json timings = readJson(out_ / "timings.json");
   std::vector<std::string> stages;
@@ -153,7 +139,7 @@ TEST_F(ScanCli, OverviewPaintsExactlyTheTopFiveOfHypothesesJson) {
   for (int k = 4; k >= 0; --k) {
     for (std::int32_t v : doc.at("hypotheses").at(k).at("vertices")) ranks[v] = k + 1;
   }
-  const Camera camera = readCamera(out_ / "renders" / "overview_camera.json");
+  const report::OverviewCamera camera = readCamera(out_);
   const cv::Mat expected = renderLabels(mesh, ranks, camera);
   const cv::Mat painted =
       cv::imread((out_ / "renders" / "overview_ranks.png").string(), cv::IMREAD_UNCHANGED);
@@ -181,7 +167,7 @@ TEST_F(ScanCli, PaintedHypothesesShowTheGroundTruthObjectsTheEvaluationNames) {
   // The ground truth's object ids rendered from the overview's camera: under each painted rank
   // that found an object, most pixels show that object.
   const TriangleMesh truth = readPly(scene_ / "scene_gt.ply");
-  const Camera camera = readCamera(out_ / "renders" / "overview_camera.json");
+  const report::OverviewCamera camera = readCamera(out_);
   const cv::Mat truth_ids = renderLabels(truth, truth.labels, camera);
   const cv::Mat painted =
       cv::imread((out_ / "renders" / "overview_ranks.png").string(), cv::IMREAD_UNCHANGED);
@@ -272,9 +258,81 @@ TEST_F(ScanCli, RenderNamesWhatIsMissing) {
   // Truncated JSON.
   writeFileAtomically(no_mesh / "hypotheses.json", doc.dump().substr(0, 100));
   expectOneErrorLine(objscan({"render", no_mesh.string()}), 2,
-                     (no_mesh / "hypotheses.json").string() + ": not the JSON objscan writes");
+                     (no_mesh / "hypotheses.json").string() + ": not valid JSON");
   EXPECT_FALSE(fs::exists(no_mesh / "renders"));
   expectOneErrorLine(objscan({"render", out_.string(), "--size", "640-480"}), 2, "--size");
+}
+
+/// hypotheses.json's bytes with the scenes' stage timings (wall time, never the same twice) zeroed.
+std::string withoutTimings(const fs::path& file) {
+  report::Hypotheses h = report::readHypotheses(file);
+  for (report::SceneRecord& s : h.scenes) {
+    if (s.findings) s.findings->timings_ms = {};
+  }
+  const fs::path copy = file.parent_path() / "untimed.json";
+  report::writeHypotheses(copy, h);
+  const std::string bytes = readWholeFile(copy);
+  fs::remove(copy);
+  return bytes;
+}
+
+TEST_F(ScanCli, HypothesesAreExactlyWhatDiscoverFindsOnTheWrittenMesh) {
+  // scan hands its mesh to discovery in memory; discover reads mesh.ply back from disk. The two
+  // must agree to the byte: the mesh file holds exactly what was discovered on.
+  ASSERT_EQ(scan_.exit_code, 0) << scan_.err;
+  const fs::path again = *dir_ / "discover_again";
+  const ProcessResult r =
+      objscan({"discover", (out_ / "mesh.ply").string(), "--out", again.string(), "--no-catalog"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(withoutTimings(out_ / "hypotheses.json"), withoutTimings(again / "hypotheses.json"));
+  EXPECT_EQ(readWholeFile(out_ / "objects" / "rank_001.ply"),
+            readWholeFile(again / "objects" / "rank_001.ply"));
+}
+
+TEST_F(ScanCli, SettingsJsonSaysHowTheRunWasMadeAndConfigRepeatsIt) {
+  ASSERT_EQ(scan_.exit_code, 0) << scan_.err;
+  const report::Settings settings = report::readSettings(out_ / "settings.json");
+  EXPECT_EQ(settings.command, "scan");
+  EXPECT_FALSE(settings.objscan_version.empty());
+  EXPECT_EQ(settings.intrinsics_origin.empty(), false);
+  ASSERT_TRUE(settings.intrinsics.has_value());
+  EXPECT_EQ(settings.intrinsics->width_px, 640);
+  EXPECT_FALSE(settings.catalog.has_value());  // --no-catalog
+  std::map<std::string, std::vector<std::string>> options;
+  for (const report::OptionSetting& o : settings.options) options[o.name] = o.values;
+  EXPECT_EQ(options["source"], std::vector<std::string>{scene_.string()});
+  EXPECT_EQ(options["no-catalog"], std::vector<std::string>{"true"});
+  EXPECT_EQ(options["ranks-image"], std::vector<std::string>{"true"});
+  EXPECT_EQ(options["voxel-size"], std::vector<std::string>{"0.005859375"});  // every digit
+  EXPECT_EQ(options["truncation"], std::vector<std::string>{"0.03"});  // the default, resolved
+  EXPECT_EQ(options["top"], std::vector<std::string>{"5"});
+  // The report shows them.
+  EXPECT_NE(readWholeFile(out_ / "report.html").find("id=\"settings\""), std::string::npos);
+
+  // The same run again from the file; flags on the command line override it.
+  const fs::path again = *dir_ / "scan_again";
+  const ProcessResult r = objscan({"scan", "--config", (out_ / "settings.json").string(), "--out",
+                                   again.string(), "--top", "2"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(fs::exists(again / "renders" / "rank_002.png"));
+  EXPECT_FALSE(fs::exists(again / "renders" / "rank_003.png"));
+  EXPECT_TRUE(
+      fs::exists(again / "renders" / "overview_ranks.png"));  // --ranks-image, from the file
+  const report::Settings repeated = report::readSettings(again / "settings.json");
+  std::map<std::string, std::vector<std::string>> repeated_options;
+  for (const report::OptionSetting& o : repeated.options) repeated_options[o.name] = o.values;
+  options["out"] = {again.string()};
+  options["top"] = {"2"};
+  EXPECT_EQ(repeated_options, options);
+
+  // Settings of another command, or a damaged file: one error line naming it, exit 2.
+  expectOneErrorLine(objscan({"discover", "--config", (out_ / "settings.json").string(), "--out",
+                              (*dir_ / "nope").string()}),
+                     2, (out_ / "settings.json").string() + ": the settings of objscan scan");
+  const fs::path broken = *dir_ / "broken_settings.json";
+  writeFileAtomically(broken, "{\"command\": \"scan\", \"options\": ");
+  expectOneErrorLine(objscan({"scan", "--config", broken.string(), "--out", again.string()}), 2,
+                     broken.string() + ": not valid JSON");
 }
 
 TEST(ScanCliErrors, AnOutputFolderThatCannotBeWrittenFailsBeforeFusing) {

@@ -21,10 +21,10 @@
 #include "objscan/capture/folder_source.h"
 #include "objscan/capture/oni_container.h"
 #include "objscan/capture/openni.h"
+#include "objscan/capture/synthetic/synthetic_recording.h"
+#include "objscan/capture/synthetic/synthetic_source.h"
 #include "objscan/core/error.h"
 #include "objscan/core/trajectory.h"
-#include "objscan/render/synthetic_recording.h"
-#include "objscan/render/synthetic_source.h"
 #include "test_support.h"
 
 namespace objscan::capture {
@@ -98,16 +98,16 @@ class OpenNI : public ::testing::Test {
   /// One synthetic recording folder (160x120, 24 frames) shared by the tests.
   static void SetUpTestSuite() {
     dir_ = new TempDir();
-    render::SceneConfig scene_config;
+    capture::SceneConfig scene_config;
     scene_config.objects = 3;
     scene_config.seed = 5;
-    render::HandheldPathConfig path_config;
+    capture::HandheldPathConfig path_config;
     path_config.frames = static_cast<int>(kFolderFrames);
     path_config.seed = 5;
-    const render::SceneAndPath sp =
-        render::composeSceneSeenAlongPath(scene_config, path_config, smallCamera());
-    render::writeSyntheticRecording(sp.scene, sp.path, smallCamera(), render::SensorModelConfig{},
-                                    5, folder());
+    const capture::SceneAndPath sp =
+        capture::composeSceneSeenAlongPath(scene_config, path_config, smallCamera());
+    capture::writeSyntheticRecording(sp.scene, sp.path, smallCamera(), capture::SensorModelConfig{},
+                                     5, folder());
   }
   static void TearDownTestSuite() {
     delete dir_;
@@ -167,7 +167,7 @@ TEST_F(OpenNI, RecordThenReplayIsPixelIdenticalForASynthSpec) {
   const fs::path oni = out_.path() / "synth.oni";
   const ProcessResult r = record("virtual:" + spec, oni);
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  render::SyntheticSource direct(render::parseSynthSpec(spec), Intrinsics::xtionDefault());
+  capture::SyntheticSource direct(capture::parseSynthSpec(spec), Intrinsics::xtionDefault());
   auto replay = openOniFile(oni);
   EXPECT_EQ(replay->info().intrinsics.width_px, 640);
   expectSameFrames(readAll(direct), readAll(*replay), 6);

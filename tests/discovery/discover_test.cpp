@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "objscan/discovery/discover.h"
+#include "objscan/discovery/scenes.h"
 #include "objscan/discovery/segmentation.h"
 #include "test_support.h"
 
@@ -161,11 +162,21 @@ TEST(Discover, AnObjectSmallerThanMSizeThatTheCutsIsolateIsACandidate) {
   EXPECT_TRUE(discoverObjects(mesh, config).empty());
 }
 
-TEST(Discover, ABareTableHasNoCandidatesAndAMeshWithoutNormalsIsRejected) {
+TEST(Discover, ABareTableHasNoCandidatesAndAMeshWithoutNormalsGetsThemComputed) {
   EXPECT_TRUE(discoverObjects(table(false), DiscoveryConfig{}).empty());
+  // The stage itself needs normals; the entry point users run computes those a mesh lacks, as it
+  // does for a PLY file without them.
   TriangleMesh no_normals = table(true);
   no_normals.normals.clear();
-  EXPECT_THROW(discoverObjects(no_normals, DiscoveryConfig{}), std::invalid_argument);
+  EXPECT_THROW(findCandidates(no_normals, DiscoveryConfig{}), std::invalid_argument);
+  TriangleMesh recomputed = no_normals;
+  recomputed.computeNormals();
+  const std::vector<Hypothesis> a = discoverObjects(no_normals, DiscoveryConfig{});
+  const std::vector<Hypothesis> b = discoverObjects(recomputed, DiscoveryConfig{});
+  ASSERT_EQ(a.size(), b.size());
+  ASSERT_FALSE(a.empty());
+  for (std::size_t i = 0; i < a.size(); ++i)
+    EXPECT_EQ(a[i].segment.vertices, b[i].segment.vertices);
 }
 
 TEST(Discover, AverageScoreZNormalisesAndOrientsTheMeasures) {

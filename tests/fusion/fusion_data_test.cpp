@@ -14,12 +14,12 @@
 #include <vector>
 
 #include "objscan/capture/folder_source.h"
+#include "objscan/capture/synthetic/synthetic_source.h"
 #include "objscan/core/mesh_distance.h"
 #include "objscan/core/trajectory.h"
 #include "objscan/fusion/marching_cubes.h"
 #include "objscan/fusion/pipeline.h"
 #include "objscan/render/offscreen_renderer.h"
-#include "objscan/render/synthetic_source.h"
 
 namespace objscan::fusion {
 namespace {
@@ -69,8 +69,8 @@ TEST(FusionAccuracy, SevenScenesThreeHundredFramesWithinThreeCentimetres) {
   FusedRun run = fuseAll(*source);
   ASSERT_TRUE(run.fusion.has_value());
   const TrajectoryError ate = absoluteTrajectoryError(run.fusion->trajectory(), run.truth);
-  std::printf("7-Scenes 300 frames: ATE RMSE %.1f mm over %zu poses, %zu lost\n",
-              1e3 * ate.rmse_m, ate.matched, run.fusion->framesLost());
+  std::printf("7-Scenes 300 frames: ATE RMSE %.1f mm over %zu poses, %zu lost\n", 1e3 * ate.rmse_m,
+              ate.matched, run.fusion->framesLost());
   EXPECT_GE(ate.matched, 290u);
   EXPECT_LE(ate.rmse_m, 0.03);
 }
@@ -78,7 +78,7 @@ TEST(FusionAccuracy, SevenScenesThreeHundredFramesWithinThreeCentimetres) {
 TEST(FusionAccuracy, SyntheticDeskMeshIsAccurateAndComplete) {
   // The step-B desk (noise on, 300 frames) at the Xtion's 640x480, fused at the paper's voxel.
   const Intrinsics in = Intrinsics::xtionDefault();
-  render::SyntheticSource source(render::parseSynthSpec("synth:11,preset=desk,frames=300"), in);
+  capture::SyntheticSource source(capture::parseSynthSpec("synth:11,preset=desk,frames=300"), in);
   FusedRun run = fuseAll(source);
   ASSERT_TRUE(run.fusion.has_value());
   const TrajectoryError ate = absoluteTrajectoryError(run.fusion->trajectory(), run.truth);
@@ -114,10 +114,10 @@ TEST(FusionAccuracy, SyntheticDeskMeshIsAccurateAndComplete) {
     }
   }
   const double completeness = static_cast<double>(near) / static_cast<double>(seen);
-  std::printf("synthetic desk 300 frames: ATE RMSE %.1f mm, %zu lost; mesh accuracy %.2f mm, "
-              "completeness %.1f %% of %zu seen points\n",
-              1e3 * ate.rmse_m, run.fusion->framesLost(), 1e3 * accuracy_m, 100.0 * completeness,
-              seen);
+  std::printf(
+      "synthetic desk 300 frames: ATE RMSE %.1f mm, %zu lost; mesh accuracy %.2f mm, "
+      "completeness %.1f %% of %zu seen points\n",
+      1e3 * ate.rmse_m, run.fusion->framesLost(), 1e3 * accuracy_m, 100.0 * completeness, seen);
   EXPECT_LE(ate.rmse_m, 0.01);
   EXPECT_LE(accuracy_m, 0.003);
   EXPECT_GE(completeness, 0.95);

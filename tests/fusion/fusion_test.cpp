@@ -15,6 +15,7 @@
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>
 
+#include "objscan/capture/synthetic/synthetic_source.h"
 #include "objscan/core/trajectory.h"
 #include "objscan/fusion/icp.h"
 #include "objscan/fusion/marching_cubes.h"
@@ -22,7 +23,6 @@
 #include "objscan/fusion/preprocess.h"
 #include "objscan/fusion/raycast.h"
 #include "objscan/fusion/tsdf_volume.h"
-#include "objscan/render/synthetic_source.h"
 #include "test_support.h"
 
 namespace objscan::fusion {
@@ -116,7 +116,7 @@ TEST(TsdfVolume, FrontoParallelPlaneHasExactSignedDistances) {
     }
   }
   // Beyond the truncation band in front, distances are clamped to the truncation.
-  EXPECT_NEAR(volume.sdfAt(Eigen::Vector3f(0, 0, 0.95f)).value_or(0.0f), config.truncation_m,
+  EXPECT_NEAR(volume.sdfAt(Eigen::Vector3f(0, 0, 0.95f)).value_or(0.0f), config.truncation(),
               1e-6f);
 }
 
@@ -418,7 +418,7 @@ TEST(Fusion, RejectsFramesAndSettingsThatDoNotFit) {
 TEST(Fusion, TracksASyntheticHandHeldSequenceWithNoise) {
   // The step-B simulator (noise on) at 320x240: a desk with objects along a hand-held path.
   const Intrinsics in = centredCamera(320, 240, 285.15);
-  render::SyntheticSource source(render::parseSynthSpec("synth:3,frames=45,objects=6"), in);
+  capture::SyntheticSource source(capture::parseSynthSpec("synth:3,frames=45,objects=6"), in);
   const Trajectory& truth = *source.info().ground_truth;
   std::optional<Fusion> fusion;
   for (auto r = source.next(); r.status == capture::FrameStatus::kOk; r = source.next()) {

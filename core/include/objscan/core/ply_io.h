@@ -42,9 +42,10 @@ struct PlyReadReport {
 
 /// Reads a PLY mesh (ASCII or binary of either byte order). Vertex properties x, y, z (required),
 /// nx, ny, nz, red, green, blue (uchar, or float/double in 0..1) and object_id (any integer type,
-/// into TriangleMesh::labels) are read in any order and of any numeric type; other properties and elements are skipped. Faces are the `vertex_indices` (or
-/// `vertex_index`) list of any integer count/item type; polygons are fan-triangulated, triangles
-/// that repeat a vertex are dropped and counted. A file without faces reads as a point cloud.
+/// into TriangleMesh::labels) are read in any order and of any numeric type; other properties and
+/// elements are skipped. Faces are the `vertex_indices` (or `vertex_index`) list of any integer
+/// count/item type; polygons are fan-triangulated, triangles that repeat a vertex are dropped and
+/// counted. A file without faces reads as a point cloud.
 ///
 /// Throws InputError naming the file and the problem for anything that is not a complete, valid
 /// PLY mesh: missing/empty/directory, bad magic or header, truncation anywhere (an ASCII file must
@@ -53,9 +54,14 @@ struct PlyReadReport {
 /// infinite coordinates/normals, NaN colours.
 TriangleMesh readPly(const std::filesystem::path& path, PlyReadReport* report = nullptr);
 
-/// Writes x y z [nx ny nz] [red green blue] [object_id] as float/uchar/int and faces as `list uchar int
-/// vertex_indices`, the layout MeshLab, CloudCompare, Open3D and PCL all read. Floats in ASCII are
-/// written with the shortest text that reads back to the same value, so both formats round-trip
+/// The bytes of the PLY file writePly writes for `mesh` (same layout, same bytes), for a caller
+/// that also needs them in memory (a content hash of the file it writes).
+/// Throws std::invalid_argument if mesh.validate() fails.
+std::string encodePly(const TriangleMesh& mesh, PlyFormat format = PlyFormat::kBinaryLittleEndian);
+
+/// Writes x y z [nx ny nz] [red green blue] [object_id] as float/uchar/int and faces as `list uchar
+/// int vertex_indices`, the layout MeshLab, CloudCompare, Open3D and PCL all read. Floats in ASCII
+/// are written with the shortest text that reads back to the same value, so both formats round-trip
 /// exactly. The file appears atomically (temporary name, then rename).
 /// Throws std::invalid_argument if mesh.validate() fails, OutputError if writing fails.
 void writePly(const std::filesystem::path& path, const TriangleMesh& mesh,

@@ -22,7 +22,8 @@ class ProgressBar {
     kLines,   ///< one line per 10 % step
   };
 
-  /// `total` = 0 means the total is unknown: only the count and rate are shown.
+  /// `total` = 0 means the total is unknown: only the count and rate are shown. An empty `label`
+  /// draws nothing.
   ProgressBar(std::string label, std::size_t total, Style style = Style::kAuto,
               std::FILE* out = stderr);
   ~ProgressBar();

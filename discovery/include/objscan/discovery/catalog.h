@@ -6,6 +6,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -109,5 +110,7 @@ class Catalog {
 /// content, so that a scene already in the catalog is not recomputed. Not cryptographic. Stored in
 /// catalogs, so it must never change. Throws objscan::InputError when the file cannot be read.
 std::string contentHash(const std::filesystem::path& file);
+/// The same hash of bytes in memory: contentHashOfBytes(a file's bytes) == contentHash(the file).
+std::string contentHashOfBytes(std::string_view bytes);
 
 }  // namespace objscan::discovery

@@ -138,9 +138,4 @@ void addRecurrence(SceneCandidates& candidates, const RecurrenceIndex& index, st
 std::vector<Hypothesis> rankCandidates(const SceneCandidates& candidates,
                                        const ObjectnessModel& model, double max_iou);
 
-/// One scene on its own: findCandidates, scores averaged over its own candidates, suppression.
-/// An empty result means no object candidates.
-std::vector<Hypothesis> discoverObjects(const TriangleMesh& mesh, const DiscoveryConfig& config,
-                                        DiscoveryTimings* timings = nullptr);
-
 }  // namespace objscan::discovery

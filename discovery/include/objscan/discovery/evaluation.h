@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "objscan/discovery/labels.h"
 #include "objscan/discovery/scoring.h"
 
 /// The paper's evaluation protocol (section V): measures z-normalised over the whole data set,
@@ -62,5 +63,28 @@ void writeEvalCsv(const EvalResult& result, const std::filesystem::path& curves_
 /// legend of their APs, as a PNG of width x height pixels (OpenCV), written atomically.
 void writePrPlot(const EvalResult& result, const std::filesystem::path& png, int width = 900,
                  int height = 700);
+
+/// One rank of a ranked list matched against the ground truth.
+struct RankMatch {
+  ObjectMatch match;       ///< the object it overlaps most
+  bool found = false;      ///< it finds that object: IoU >= min_iou and no better rank found it
+  double precision = 0.0;  ///< objects found up to this rank / rank
+  double recall = 0.0;     ///< objects found up to this rank / objects
+};
+
+/// How one scan's ranked hypotheses find the objects of its scene (objscan scan's evaluation).
+struct RankingEvaluation {
+  std::size_t objects = 0;  ///< ground-truth objects with at least one vertex
+  std::size_t found = 0;
+  double min_iou = 0.7;
+  double ap = 0.0;  ///< averagePrecisionOfRanking over the objects
+  std::vector<RankMatch> ranks;
+};
+
+/// Matches ranked vertex sets (best first, indices into the scene mesh) with the objects: a rank
+/// finds an object when their vertex IoU reaches `min_iou` and no better rank found it already.
+RankingEvaluation evaluateRanking(const GroundTruthObjects& truth,
+                                  const std::vector<std::vector<std::int32_t>>& ranked,
+                                  double min_iou = 0.7);
 
 }  // namespace objscan::discovery

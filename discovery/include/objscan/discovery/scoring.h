@@ -103,4 +103,10 @@ class ObjectnessModel {
 /// flatters a ranking. NaN when there is no positive.
 double averagePrecision(const std::vector<double>& scores, const std::vector<int>& labels);
 
+/// Average precision of a ranked list, the one definition behind every AP objscan reports: the
+/// mean, over `positives` objects, of the precision (hits so far / rank) at the rank of each hit,
+/// where hits[k] is 1 when rank k + 1 found an object; objects never found count 0. 0 when
+/// `positives` is 0.
+double averagePrecisionOfRanking(const std::vector<int>& hits, std::size_t positives);
+
 }  // namespace objscan::discovery

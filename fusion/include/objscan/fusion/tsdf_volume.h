@@ -21,15 +21,18 @@ struct VolumeConfig {
   /// Edge of a voxel. The paper's meshes came from KinectFusion's 3 m / 512 voxels; the same
   /// density keeps its size constants (m_size = 500 vertices) meaningful.
   float voxel_size_m = 3.0f / 512.0f;
-  /// Signed distances are truncated to +-this. 3 cm (KinectFusion's default) covers about three
-  /// standard deviations of an Xtion's depth noise at 2 m; it must span at least 2 voxels.
-  float truncation_m = 0.03f;
+  /// Signed distances are truncated to +-this; it must span at least 2 voxels. Nothing: 3 cm
+  /// (KinectFusion's default, about three standard deviations of an Xtion's depth noise at 2 m),
+  /// or 3 voxels when that is more. truncation() gives the value used.
+  std::optional<float> truncation_m;
   /// A voxel's weight stops growing here, so the running average keeps adapting (KinectFusion
   /// caps it at 128 frames).
   float max_weight = 128.0f;
   /// Block allocation looks at every n-th pixel in both directions: at 3 m a pixel covers 5 mm, so
   /// 4 pixels stay well under a block's 4.7 cm and no block in the band is missed.
   int allocation_stride_px = 4;
+  /// The truncation distance used: truncation_m, or its default for this voxel size.
+  float truncation() const;
   /// Throws std::invalid_argument with a sentence naming the bad field.
   void validate() const;
 };

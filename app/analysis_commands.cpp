@@ -1,0 +1,177 @@
+// The flags of objscan's analysis commands: discover, eval, train, render, scan.
+
+#include <memory>
+#include <string>
+
+#include "commands.h"
+#include "discover_command.h"
+#include "eval_command.h"
+#include "exit_codes.h"
+#include "options.h"
+#include "render_command.h"
+#include "scan_command.h"
+
+namespace objscan::app {
+
+Command addDiscoverCommand(CLI::App& app) {
+  auto options = std::make_shared<DiscoverCommandOptions>();
+  DiscoverCommandOptions& discover_options = *options;
+  CLI::App* discover = app.add_subcommand(
+      "discover", "Segment scene meshes, measure and rank object hypotheses into DIR");
+  discover
+      ->add_option("meshes", discover_options.meshes,
+                   "Scene meshes (.ply, e.g. objscan fuse's mesh.ply), or folders holding one")
+      ->required();
+  discover->add_option("--out", discover_options.out, "Folder for hypotheses.json and objects/")
+      ->required();
+  auto* catalog_option =
+      discover->add_option("--catalog", discover_options.catalog,
+                           "Catalog of scenes seen so far (SQLite; default $OBJSCAN_CATALOG or "
+                           "~/.local/share/objscan/catalog.sqlite)");
+  discover
+      ->add_flag("--no-catalog", discover_options.no_catalog,
+                 "Use no catalog: recurrence only among the scenes given")
+      ->excludes(catalog_option);
+  discover->add_option("--model", discover_options.model,
+                       "Score with a classifier from objscan train (default: the average of the "
+                       "normalised measures)");
+  discover->add_flag("--timings", discover_options.timings, "Print each stage's time");
+  addDiscoveryOptions(discover, discover_options.config);
+  return {discover, [options, discover] {
+            options->settings = commandSettings(*discover);
+            return runDiscover(*options);
+          }};
+}
+
+Command addEvalCommand(CLI::App& app) {
+  auto options = std::make_shared<EvalCommandOptions>();
+  EvalCommandOptions& eval_options = *options;
+  CLI::App* eval = app.add_subcommand(
+      "eval", "The paper's evaluation on labelled scenes: AP, precision-recall, ablation, recall");
+  addLabelledScenes(eval, eval_options.scenes, eval_options.catalog);
+  eval->add_option("--out", eval_options.out, "Folder for the CSV files and plots")->required();
+  addDiscoveryOptions(eval, eval_options.config);
+  eval->add_option("--splits", eval_options.splits, "Random train/test halvings")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  eval->add_option("--seed", eval_options.seed, "Seed of the splits and folds")
+      ->capture_default_str();
+  eval->add_flag_callback(
+      "--no-ablation", [&eval_options] { eval_options.ablation = false; },
+      "Skip the RBF SVM without each measure");
+
+  return {eval, [options, eval] {
+            options->settings = commandSettings(*eval);
+            return runEval(*options);
+          }};
+}
+
+Command addTrainCommand(CLI::App& app) {
+  auto options = std::make_shared<TrainCommandOptions>();
+  TrainCommandOptions& train_options = *options;
+  CLI::App* train = app.add_subcommand(
+      "train", "Fit a classifier that scores hypotheses (for objscan discover --model)");
+  addLabelledScenes(train, train_options.scenes, train_options.catalog);
+  train->add_option("--model", train_options.model, "Model file to write (YAML)")->required();
+  train
+      ->add_option("--kind", train_options.kind,
+                   "naive_bayes, linear_svm, rbf_svm or nearest_neighbour")
+      ->capture_default_str();
+  train
+      ->add_option("--min-iou", train_options.min_iou,
+                   "A segment is an object at this IoU with a ground-truth object")
+      ->check(CLI::Range(0.01, 1.0))
+      ->capture_default_str();
+  addDiscoveryOptions(train, train_options.config);
+  train->add_option("--seed", train_options.seed, "Seed of the cross-validation folds")
+      ->capture_default_str();
+
+  return {train, [options] { return runTrain(*options); }};
+}
+
+Command addRenderCommand(CLI::App& app) {
+  auto options = std::make_shared<RenderCommandOptions>();
+  RenderCommandOptions& render_options = *options;
+  CLI::App* render = app.add_subcommand(
+      "render",
+      "Render the top hypotheses of a results folder into DIR/renders/ and DIR/report.html");
+  render
+      ->add_option("dir", render_options.dir,
+                   "A results folder of objscan scan (or discover): hypotheses.json, mesh.ply, "
+                   "trajectory.txt")
+      ->required();
+  addPictureOptions(render, render_options.pictures);
+
+  return {render, [options] { return runRender(*options); }};
+}
+
+namespace {
+
+/// scan's flags that become its options only once parsed.
+struct ScanFlags {
+  ScanCommandOptions options;
+  std::filesystem::path record;
+  bool compress_color = false;
+};
+
+}  // namespace
+
+Command addScanCommand(CLI::App& app) {
+  auto state = std::make_shared<ScanFlags>();
+  ScanCommandOptions& scan_options = state->options;
+  CLI::App* scan = app.add_subcommand(
+      "scan", "Capture (or replay) to ranked objects in one go: fuse, discover, render, report");
+  scan->add_option(
+      "source", scan_options.source,
+      "X.oni, a TUM or 7-Scenes folder, synth:<seed>, virtual:<source>, or live[:uri]; "
+      "default: the first live sensor");
+  scan->add_option("--out", scan_options.out,
+                   "Folder for mesh.ply, trajectory.txt, hypotheses.json, objects/, renders/, "
+                   "report.html, timings.json")
+      ->required();
+  auto* scan_frames = scan->add_option("--frames", scan_options.limits.max_frames,
+                                       "Stop capture after this many frames")
+                          ->check(CLI::PositiveNumber);
+  scan->add_option("--seconds", scan_options.limits.max_seconds, "Stop capture after this long")
+      ->check(CLI::PositiveNumber)
+      ->excludes(scan_frames);
+  addFusionOptions(scan, scan_options.fuse);
+  scan->add_option("--record", state->record,
+                   "Save the live sensor's raw stream to this .oni while scanning (depth "
+                   "lossless; replayable however capture ends)");
+  scan->add_flag("--compress-color", state->compress_color,
+                 "With --record: store colour as JPEG (lossy, about 10x smaller)");
+  auto* scan_catalog_option =
+      scan->add_option("--catalog", scan_options.discover.catalog,
+                       "Catalog of scenes seen so far (default $OBJSCAN_CATALOG or "
+                       "~/.local/share/objscan/catalog.sqlite)");
+  scan->add_flag("--no-catalog", scan_options.discover.no_catalog, "Use no catalog")
+      ->excludes(scan_catalog_option);
+  scan->add_option("--model", scan_options.discover.model,
+                   "Score with a classifier from objscan train (default: the average)");
+  addDiscoveryOptions(scan, scan_options.discover.config);
+  addPictureOptions(scan, scan_options.pictures);
+  auto* truth_option = scan->add_option(
+      "--ground-truth", scan_options.ground_truth,
+      "Scene mesh with per-vertex object_id (objscan synth's scene_gt.ply) to score the "
+      "hypotheses against (default: X.scene_gt.ply beside X.oni, scene_gt.ply in a folder)");
+  scan->add_flag("--no-ground-truth", scan_options.no_ground_truth,
+                 "Do not look for ground truth beside the source")
+      ->excludes(truth_option);
+
+  return {scan, [state, scan] {
+            state->options.settings = commandSettings(*scan);
+            if (!state->record.empty()) {
+              capture::LiveRecording live_record;
+              live_record.out = state->record;
+              live_record.compress_color = state->compress_color;
+              state->options.fuse.record = live_record;
+            } else if (state->compress_color) {
+              throw std::invalid_argument(
+                  "--compress-color needs --record (run 'objscan scan --help')");
+            }
+            return runScan(state->options);
+          }};
+}
+
+}  // namespace objscan::app

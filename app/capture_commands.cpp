@@ -1,0 +1,110 @@
+// The flags of objscan's capture-side commands: info, devices, synth, record, fuse.
+
+#include <memory>
+#include <string>
+
+#include "commands.h"
+#include "fuse_command.h"
+#include "info_command.h"
+#include "options.h"
+#include "record_command.h"
+#include "synth_command.h"
+
+namespace objscan::app {
+
+Command addInfoCommand(CLI::App& app) {
+  auto info_path = std::make_shared<std::string>();
+  CLI::App* info = app.add_subcommand(
+      "info", "Print what a mesh (.ply), trajectory (TUM .txt) or recording holds");
+  info->add_option("path", *info_path,
+                   "A .ply mesh, a TUM trajectory .txt, or a TUM-format recording folder")
+      ->required();
+  return {info, [info_path] {
+            runInfo(*info_path);
+            return 0;
+          }};
+}
+
+Command addDevicesCommand(CLI::App& app) {
+  CLI::App* devices =
+      app.add_subcommand("devices", "List connected OpenNI2 sensors (Asus Xtion, Kinect v1, ...)");
+  return {devices, [] {
+            runDevices();
+            return 0;
+          }};
+}
+
+Command addSynthCommand(CLI::App& app) {
+  auto options = std::make_shared<SynthOptions>();
+  SynthOptions& synth_options = *options;
+  CLI::App* synth = app.add_subcommand(
+      "synth", "Generate a synthetic scene with exact ground truth, rendered as a TUM recording");
+  synth->add_option("--out", synth_options.out, "Folder to create (must not exist, or be empty)")
+      ->required();
+  synth->add_option("--preset", synth_options.preset, "Scene: desk, shelf or counter")
+      ->capture_default_str();
+  synth->add_option("--objects", synth_options.objects, "How many objects to place (1-30)")
+      ->capture_default_str();
+  synth->add_option("--object-dir", synth_options.object_dir,
+                    "Folder of .ply meshes (metres, z up) added to the built-in shapes");
+  synth->add_option("--frames", synth_options.frames, "Frames along the hand-held path (30 Hz)")
+      ->capture_default_str();
+  synth->add_option("--seed", synth_options.seed, "Seed: same seed, same files")
+      ->check(CLI::Validator(
+          [](std::string& s) {
+            return s.starts_with('-') ? std::string("must be 0 or more") : std::string();
+          },
+          "NONNEGATIVE"))
+      ->capture_default_str();
+  synth->add_option("--noise", synth_options.noise, "Depth-sensor noise model: on or off")
+      ->capture_default_str();
+  synth->add_option("--intrinsics", synth_options.intrinsics,
+                    "intrinsics.json (fx, fy, cx, cy, width, height); default: Xtion 640x480");
+
+  return {synth, [options] {
+            runSynth(*options);
+            return 0;
+          }};
+}
+
+Command addRecordCommand(CLI::App& app) {
+  auto options = std::make_shared<RecordCommandOptions>();
+  RecordCommandOptions& record_options = *options;
+  CLI::App* record = app.add_subcommand(
+      "record", "Record a sensor session to an .oni file (depth lossless); Ctrl-C stops cleanly");
+  record->add_option("--out", record_options.out, "The .oni file to write")->required();
+  record->add_option("--device", record_options.device,
+                     "Sensor URI (objscan devices lists them); default: the first one. "
+                     "virtual:<folder> or virtual:synth:<seed> streams a dataset or a synthetic "
+                     "scene through objscan's virtual OpenNI2 sensor");
+  auto* frames_option =
+      record->add_option("--frames", record_options.frames, "Stop after this many frames")
+          ->check(CLI::PositiveNumber);
+  record->add_option("--seconds", record_options.seconds, "Stop after this many seconds")
+      ->check(CLI::PositiveNumber)
+      ->excludes(frames_option);
+  record->add_flag("--compress-color", record_options.compress_color,
+                   "Store colour as JPEG (lossy, about 10x smaller); depth stays lossless");
+  record->add_option("--intrinsics", record_options.intrinsics,
+                     "intrinsics.json stored with the recording (X.oni.json) instead of what the "
+                     "sensor reports; replay uses it");
+
+  return {record, [options] { return runRecord(*options); }};
+}
+
+Command addFuseCommand(CLI::App& app) {
+  auto options = std::make_shared<FuseCommandOptions>();
+  CLI::App* fuse = app.add_subcommand(
+      "fuse", "Fuse a recording into DIR/mesh.ply and DIR/trajectory.txt (TSDF + ICP tracking)");
+  fuse->add_option("source", options->fuse.source,
+                   "X.oni, a TUM or 7-Scenes folder, synth:<seed>, live[:uri] or virtual:<source>")
+      ->required();
+  fuse->add_option("--out", options->out, "Folder for mesh.ply and trajectory.txt")->required();
+  addFusionOptions(fuse, options->fuse);
+  return {fuse, [options, fuse] {
+            options->settings = commandSettings(*fuse);
+            return runFuse(*options);
+          }};
+}
+
+}  // namespace objscan::app

@@ -1,0 +1,27 @@
+#pragma once
+
+#include <functional>
+
+#include <CLI/CLI.hpp>
+
+/// The subcommands of `objscan`: each adds its flags to the command line and returns what to run
+/// once they are parsed.
+namespace objscan::app {
+
+struct Command {
+  CLI::App* sub = nullptr;
+  std::function<int()> run;  ///< returns the exit code
+};
+
+Command addInfoCommand(CLI::App& app);
+Command addDevicesCommand(CLI::App& app);
+Command addSynthCommand(CLI::App& app);
+Command addRecordCommand(CLI::App& app);
+Command addFuseCommand(CLI::App& app);
+Command addDiscoverCommand(CLI::App& app);
+Command addEvalCommand(CLI::App& app);
+Command addTrainCommand(CLI::App& app);
+Command addRenderCommand(CLI::App& app);
+Command addScanCommand(CLI::App& app);
+
+}  // namespace objscan::app

@@ -1,0 +1,176 @@
+#include "options.h"
+
+#include <cstdio>
+#include <cstdlib>
+#include <iterator>
+#include <memory>
+#include <string>
+
+#include "objscan/core/error.h"
+#include "objscan/report/results_io.h"
+
+namespace objscan::app {
+namespace {
+
+/// CLI11's reader of --config files, for settings.json.
+class SettingsFile : public CLI::Config {
+ public:
+  explicit SettingsFile(const CLI::App* app) : app_(app) {}
+
+  std::string to_config(const CLI::App*, bool, bool, std::string) const override {
+    return {};  // settings.json is written by report::writeSettings, from the parsed options
+  }
+
+  std::vector<CLI::ConfigItem> from_config(std::istream& in) const override {
+    const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+    const std::string file = app_->get_config_ptr()->as<std::string>();
+    report::Settings settings;
+    try {
+      settings = report::parseSettings(text, file);
+    } catch (const InputError& e) {
+      throw CLI::ConfigError(e.what());
+    }
+    const std::vector<CLI::App*> given = app_->get_subcommands();
+    const std::string command = given.empty() ? std::string() : given.front()->get_name();
+    if (settings.command != command) {
+      throw CLI::ConfigError(file + ": the settings of objscan " + settings.command + ", not of " +
+                             (command.empty() ? std::string("no command") : command));
+    }
+    std::vector<CLI::ConfigItem> out;
+    for (const report::OptionSetting& o : settings.options) {
+      if (o.name == "config" || o.values.empty()) continue;  // unset: the command's default
+      if (o.flag && o.values.front() != "true") continue;    // a flag not given
+      CLI::ConfigItem item;
+      item.parents = {command};
+      item.name = o.name;
+      item.inputs = o.values;
+      out.push_back(std::move(item));
+    }
+    return out;
+  }
+
+ private:
+  const CLI::App* app_;
+};
+
+}  // namespace
+
+void addConfigOption(CLI::App& app) {
+  // On the top level, as CLI11 reads config files only there; `objscan scan --config FILE` reaches
+  // it because the subcommands fall through to it.
+  app.set_config("--config", "",
+                 "A settings.json of an earlier run (OUT/settings.json), after the command: its "
+                 "options become the command's defaults; flags given with it override them");
+  app.config_formatter(std::make_shared<SettingsFile>(&app));
+}
+
+report::Settings commandSettings(const CLI::App& sub) {
+  report::Settings settings;
+  settings.objscan_version = OBJSCAN_VERSION;
+  settings.command = sub.get_name();
+  for (const CLI::Option* opt : sub.get_options()) {
+    if (opt == sub.get_help_ptr() || opt == sub.get_config_ptr()) continue;
+    report::OptionSetting o;
+    o.name = opt->get_lnames().empty() ? opt->get_name() : opt->get_lnames().front();
+    o.flag = opt->get_expected_min() == 0;
+    o.list = !o.flag && opt->get_expected_max() > 1;
+    if (o.flag) {
+      o.values = {opt->count() > 0 ? "true" : "false"};
+    } else if (opt->count() > 0) {
+      o.values = opt->results();
+    } else if (!opt->get_default_str().empty()) {
+      o.values = {opt->get_default_str()};
+    }
+    settings.options.push_back(std::move(o));
+  }
+  return settings;
+}
+
+void setSetting(report::Settings& settings, const std::string& name, const std::string& value) {
+  for (report::OptionSetting& o : settings.options) {
+    if (o.name == name) o.values = {value};
+  }
+}
+
+std::string exactText(float value) {
+  char text[32];
+  // The fewest digits that read back to the same float; 9 always do.
+  for (int digits = 6; digits <= 9; ++digits) {
+    std::snprintf(text, sizeof text, "%.*g", digits, static_cast<double>(value));
+    if (std::strtof(text, nullptr) == value) break;
+  }
+  return text;
+}
+
+void addFusionOptions(CLI::App* sub, pipeline::FuseOptions& o) {
+  sub->add_option("--voxel-size", o.config.volume.voxel_size_m,
+                  "Voxel edge in metres (default: 3 m / 512, the paper's density)")
+      ->default_str(exactText(o.config.volume.voxel_size_m));
+  sub->add_option("--truncation", o.config.volume.truncation_m,
+                  "Truncation distance in metres (default: 0.03, or 3 voxels if larger)");
+  sub->add_option("--min-depth", o.config.preprocess.min_depth_m,
+                  "Ignore depth nearer than this (m)")
+      ->default_str(exactText(o.config.preprocess.min_depth_m));
+  sub->add_option("--max-depth", o.config.preprocess.max_depth_m,
+                  "Ignore depth farther than this (m)")
+      ->default_str(exactText(o.config.preprocess.max_depth_m));
+  sub->add_option("--poses", o.poses,
+                  "Integrate at given poses instead of tracking: a TUM trajectory file, or "
+                  "'groundtruth' for the source's own");
+  sub->add_option("--start", o.start, "First frame (0-based)")->check(CLI::NonNegativeNumber);
+  sub->add_option("--end", o.end, "Stop before this frame")->check(CLI::PositiveNumber);
+  sub->add_option("--every", o.every, "Use every n-th frame")->check(CLI::PositiveNumber);
+  sub->add_option("--intrinsics", o.intrinsics,
+                  "intrinsics.json (fx, fy, cx, cy, width, height) replacing the source's");
+  sub->add_flag("--no-color", o.no_color, "Fuse depth only (mesh without colours)");
+}
+
+void addDiscoveryOptions(CLI::App* sub, discovery::DiscoveryConfig& config) {
+  sub->add_option("--min-size", config.min_size,
+                  "Smallest segment, in vertices at the paper's density (scaled with the "
+                  "mesh's; the paper's m_size)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  sub->add_flag_callback(
+      "--paper-segmentation", [&config] { config.supports.enabled = false; },
+      "Segment as the paper does, without first cutting objects from the planes they stand on "
+      "(objscan's support surfaces; see the README)");
+}
+
+void addLabelledScenes(CLI::App* sub, std::vector<std::filesystem::path>& scenes,
+                       std::optional<std::filesystem::path>& catalog) {
+  sub->add_option("scenes", scenes,
+                  "Labelled scenes: folders with scene_gt.ply and fused/mesh.ply "
+                  "(scripts/make_discovery_scenes), or meshes whose vertices carry object_id")
+      ->required();
+  sub->add_option("--catalog", catalog, "Catalog to reuse and extend (default: none)");
+}
+
+void addPictureOptions(CLI::App* sub, pipeline::PictureOptions& o) {
+  sub->add_option("--top", o.top, "Hypotheses to paint and show in close-up")
+      ->check(CLI::Range(1, 100))
+      ->capture_default_str();
+  sub->add_option_function<std::string>(
+         "--size",
+         [&o](const std::string& size) {
+           int w = 0, h = 0;
+           char x = 0, extra = 0;
+           if (std::sscanf(size.c_str(), "%d%c%d%c", &w, &x, &h, &extra) != 3 || x != 'x') {
+             throw CLI::ValidationError("--size", "expected WIDTHxHEIGHT, e.g. 1280x960");
+           }
+           o.width = w;
+           o.height = h;
+         },
+         "Overview size in pixels, WIDTHxHEIGHT (close-ups are 3/8 of it)")
+      ->default_str("1280x960");
+  sub->add_option_function<std::string>(
+         "--view", [&o](const std::string& v) { o.view = objscan::render::parseViewKind(v); },
+         "Overview camera: auto (the capture's trajectory, else three-quarter), trajectory, "
+         "three-quarter or top")
+      ->check(CLI::IsMember({"auto", "trajectory", "three-quarter", "top"}))
+      ->default_str("auto");
+  sub->add_flag("--ranks-image", o.ranks_image,
+                "Also write renders/overview_ranks.png: 16-bit, the rank painted at each pixel");
+}
+
+}  // namespace objscan::app

@@ -1,0 +1,47 @@
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "objscan/discovery/discover.h"
+#include "objscan/pipeline/fuse.h"
+#include "objscan/pipeline/pictures.h"
+#include "objscan/report/results.h"
+
+/// Flags several commands share, each bound to the library's config it sets.
+namespace objscan::app {
+
+/// A number as the shortest text of at most 9 significant digits that reads back to the same
+/// float (settings.json must repeat a run exactly).
+std::string exactText(float value);
+
+/// fuse's and scan's: voxel size, truncation, depth range, poses, frame selection, intrinsics.
+void addFusionOptions(CLI::App* sub, pipeline::FuseOptions& o);
+
+/// discover's, eval's, train's and scan's: --min-size, --paper-segmentation.
+void addDiscoveryOptions(CLI::App* sub, discovery::DiscoveryConfig& config);
+
+/// eval's and train's: the labelled scenes and the catalog.
+void addLabelledScenes(CLI::App* sub, std::vector<std::filesystem::path>& scenes,
+                       std::optional<std::filesystem::path>& catalog);
+
+/// render's and scan's: --top, --size, --view, --ranks-image.
+void addPictureOptions(CLI::App* sub, pipeline::PictureOptions& o);
+
+/// --config FILE: a settings.json (one a results folder holds) whose options become the given
+/// command's defaults; flags given on the command line override them. A file of another command,
+/// or one that is not such a file, is a usage error naming it.
+void addConfigOption(CLI::App& app);
+
+/// How the parsed `sub` was run: every option by its long name (a positional by its name), as
+/// given or its default (empty where it has none), and objscan's version.
+report::Settings commandSettings(const CLI::App& sub);
+
+/// Sets one option's values in `settings` (a default the command resolves itself, e.g. the
+/// truncation for the voxel size).
+void setSetting(report::Settings& settings, const std::string& name, const std::string& value);
+
+}  // namespace objscan::app

@@ -1,0 +1,130 @@
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "objscan/core/triangle_mesh.h"
+#include "objscan/discovery/discover.h"
+#include "objscan/discovery/labels.h"
+#include "objscan/discovery/scoring.h"
+
+/// Discovery for a user: scenes (meshes in memory) and a catalog of the scenes seen before, to
+/// ranked hypotheses. The one entry point `objscan discover`, `eval`, `train` and `scan`, the
+/// tests and the benches run: each scene's candidates and five measures (or the catalog's for a
+/// scene it has seen with these settings), new scenes added to the catalog, recurrence against
+/// every other scene known, the measures normalised over the data set, scores and suppression.
+namespace objscan::discovery {
+
+/// One scene to find objects in.
+struct SceneInput {
+  /// Where the mesh came from: the mesh file as the user named it (hypotheses.json's "scene"),
+  /// or a label for a mesh that has no file.
+  std::string name;
+  TriangleMesh mesh;  ///< with normals; loadScene computes those a file lacks
+  /// The content hash of the mesh file's bytes (contentHash), by which the catalog knows a scene
+  /// it has seen; empty: the catalog neither looks it up nor keeps it.
+  std::string content_hash;
+  /// The ground-truth objects, for labelled runs (eval, train).
+  std::optional<GroundTruthObjects> truth;
+};
+
+/// Reads a scene as the command line names it: a mesh file (.ply), or a folder holding
+/// fused/mesh.ply or mesh.ply. With `labelled`, also its ground truth: scene_gt.ply in the folder
+/// (objscan synth's; its object ids moved onto the mesh by the nearest surface within 1 cm), or
+/// the mesh's own object_id. Throws InputError naming the file for a mesh that cannot be used
+/// (missing, empty, no faces, NaN, ...) or a labelled scene without labels.
+SceneInput loadScene(const std::filesystem::path& argument, bool labelled = false);
+
+/// A scene input made from a mesh in memory (normals computed if missing), checked as loadScene
+/// checks a file; `content_hash` as contentHash gives it for the bytes of the mesh's file.
+/// Throws std::invalid_argument for a mesh discovery cannot use.
+SceneInput sceneFromMesh(std::string name, TriangleMesh mesh, std::string content_hash = {});
+
+/// The object id of each vertex of `mesh`, moved from a ground-truth mesh whose vertices carry
+/// object_id (objscan synth's scene_gt.ply) by the nearest surface within 1 cm. Throws InputError
+/// naming `truth_path` when it cannot be read or has no ids.
+std::vector<std::int32_t> labelsFromTruthMesh(const std::filesystem::path& truth_path,
+                                              const TriangleMesh& mesh);
+
+/// The default catalog: $OBJSCAN_CATALOG, else $XDG_DATA_HOME/objscan/catalog.sqlite, else
+/// ~/.local/share/objscan/catalog.sqlite (its folder is created).
+std::filesystem::path defaultCatalogPath();
+
+struct SceneDiscoveryOptions {
+  DiscoveryConfig config;
+  /// The catalog file; nothing: no catalog (recurrence then comes from this run's scenes, and the
+  /// measures are normalised over them).
+  std::optional<std::filesystem::path> catalog;
+  /// Scores from a classifier (objscan train's); nothing: the average of the normalised measures.
+  std::optional<ObjectnessModel> model;
+  /// The label of the progress bar over the scenes ("" for none).
+  std::string progress_label = "finding candidates";
+};
+
+/// One scene of a run, with what discovery made of it.
+struct DiscoveredScene {
+  std::string name;  ///< SceneInput::name
+  TriangleMesh mesh;
+  SceneCandidates candidates;  ///< recurrence filled in
+  bool from_catalog = false;   ///< candidates and measures read from the catalog, not computed
+  std::int64_t scene_id = 0;   ///< in the catalog, or the scene's index without one
+  std::optional<GroundTruthObjects> truth;  ///< labelled runs only
+  std::size_t hypotheses = 0;               ///< how many of SceneDiscovery::ranked are this scene's
+};
+
+/// A hypothesis of a run: the scene it is in (index into SceneDiscovery::scenes) and itself.
+struct RankedHypothesis {
+  std::size_t scene = 0;
+  Hypothesis hypothesis;
+};
+
+/// What discoverScenes found.
+struct SceneDiscovery {
+  std::vector<DiscoveredScene> scenes;
+  /// Each measure's mean and spread over the data set: the catalog's segments when there is a
+  /// catalog (the paper normalises over its whole data set), else this run's candidates.
+  /// Recurrence is normalised over this run's candidates either way.
+  MeasureNormaliser normaliser;
+  /// The catalog used, and its scenes and segments measured with this run's settings (those
+  /// compared and normalised over); 0 without a catalog.
+  std::optional<std::filesystem::path> catalog;
+  std::size_t catalog_scenes = 0, catalog_segments = 0;
+  std::vector<RankedHypothesis> ranked;  ///< best first, over all scenes
+  ScoreKind scorer = ScoreKind::kAverage;
+  /// What the scores' normalisation came from: "the model's training segments", "catalog" or
+  /// "these scenes" (hypotheses.json's scoring.normalised_over).
+  std::string normalised_over;
+  double seconds = 0.0;  ///< wall time of the whole call
+};
+
+/// Finds the candidates of every scene (or takes them from the catalog), adds new scenes to the
+/// catalog, computes recurrence against every other scene known, normalises, scores with the
+/// model (or the average), suppresses overlaps within each scene and ranks all hypotheses best
+/// first. Throws std::invalid_argument for a bad config or a mesh discovery cannot use, InputError
+/// naming the catalog when it is damaged.
+SceneDiscovery discoverScenes(std::vector<SceneInput> scenes, const SceneDiscoveryOptions& options);
+
+/// The segments a labelled run evaluates or trains on: each scene's candidates after
+/// non-maximum suppression by the average score (as the paper's data set holds them), scene by
+/// scene, each with its best ground-truth match. Every scene must carry its truth.
+struct LabelledSegments {
+  std::vector<ShapeMeasures> measures;
+  std::vector<ObjectMatch> matches;
+  std::vector<std::size_t> scene;  ///< index into SceneDiscovery::scenes
+
+  /// 1 where the match reaches `min_iou` (the paper's object label), else 0.
+  std::vector<int> labels(double min_iou) const;
+};
+LabelledSegments labelledSegments(const SceneDiscovery& discovery, double max_iou);
+
+/// One scene on its own, through discoverScenes (no catalog, the average score): its hypotheses
+/// best first, empty when it has no object candidates. With `timings`, where the scene's time
+/// went. Throws std::invalid_argument for a bad config or a mesh discovery cannot use.
+std::vector<Hypothesis> discoverObjects(const TriangleMesh& mesh, const DiscoveryConfig& config,
+                                        DiscoveryTimings* timings = nullptr);
+
+}  // namespace objscan::discovery

@@ -1,0 +1,350 @@
+#include "objscan/discovery/scenes.h"
+
+#include <time.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <set>
+#include <system_error>
+#include <utility>
+
+#include "objscan/core/clock.h"
+#include "objscan/core/error.h"
+#include "objscan/core/log.h"
+#include "objscan/core/ply_io.h"
+#include "objscan/core/progress.h"
+#include "objscan/discovery/catalog.h"
+#include "objscan/discovery/recurrence.h"
+
+namespace objscan::discovery {
+
+std::vector<std::int32_t> labelsFromTruthMesh(const std::filesystem::path& truth_path,
+                                              const TriangleMesh& mesh) {
+  const TriangleMesh truth = readPly(truth_path);
+  if (!truth.hasLabels()) throw InputError(truth_path, "no per-vertex object_id");
+  try {
+    return transferLabels(mesh, truth);
+  } catch (const std::invalid_argument& e) {
+    throw InputError(truth_path, e.what());
+  }
+}
+
+namespace {
+
+namespace fs = std::filesystem;
+
+/// The mesh file an argument names.
+fs::path meshOf(const fs::path& argument) {
+  if (!fs::is_directory(argument)) return argument;
+  for (const char* name : {"fused/mesh.ply", "mesh.ply"}) {
+    if (fs::is_regular_file(argument / name)) return argument / name;
+  }
+  throw InputError(argument, "a folder given as a scene must hold fused/mesh.ply or mesh.ply");
+}
+
+/// Normals where the mesh has none, then the checks discovery needs; a sentence saying what is
+/// wrong otherwise.
+void prepareSceneMesh(TriangleMesh& mesh) {
+  if (mesh.empty()) throw std::invalid_argument("the mesh has no vertices");
+  if (mesh.triangles.empty()) {
+    throw std::invalid_argument(
+        "the mesh has no faces: discovery needs a triangle mesh, not a point cloud (objscan fuse "
+        "writes one)");
+  }
+  if (!mesh.hasNormals()) mesh.computeNormals();
+  mesh.validate();
+}
+
+std::vector<std::int32_t> groundTruthLabels(const fs::path& argument, const TriangleMesh& mesh) {
+  if (fs::is_directory(argument)) {
+    const fs::path truth_path = argument / "scene_gt.ply";
+    if (!fs::is_regular_file(truth_path)) {
+      throw InputError(argument,
+                       "a labelled scene folder needs scene_gt.ply (objscan synth writes it)");
+    }
+    return labelsFromTruthMesh(truth_path, mesh);
+  }
+  if (!mesh.hasLabels()) {
+    throw InputError(argument,
+                     "no labels: give a folder with scene_gt.ply and a fused mesh, or a "
+                     "mesh whose vertices carry object_id");
+  }
+  return mesh.labels;
+}
+
+CatalogSegment toCatalog(const Segment& s, const ShapeMeasures& m) {
+  CatalogSegment c;
+  c.scale = s.scale;
+  c.centroid = s.centroid;
+  c.axes = s.axes;
+  c.eigenvalues = s.eigenvalues;
+  c.extents = s.extents;
+  c.measures = m;
+  c.vertices = s.vertices;
+  return c;
+}
+
+Segment fromCatalog(CatalogSegment&& c) {
+  Segment s;
+  s.vertices = std::move(c.vertices);
+  s.scale = c.scale;
+  s.centroid = c.centroid;
+  s.axes = c.axes;
+  s.eigenvalues = c.eigenvalues;
+  s.extents = c.extents;
+  return s;
+}
+
+/// The catalog's candidates of a scene it knows, checked against the mesh: a damaged catalog
+/// must not index outside it.
+void takeFromCatalog(Catalog& catalog, const fs::path& catalog_path, std::int64_t id,
+                     DiscoveredScene& scene) {
+  scene.from_catalog = true;
+  scene.scene_id = id;
+  for (CatalogSegment& c : catalog.segments(id, true)) {
+    bool valid = !c.vertices.empty();
+    for (std::size_t i = 0; valid && i < c.vertices.size(); ++i) {
+      valid = c.vertices[i] >= 0 &&
+              static_cast<std::size_t>(c.vertices[i]) < scene.mesh.positions.size() &&
+              (i == 0 || c.vertices[i - 1] < c.vertices[i]);
+    }
+    if (!valid) {
+      throw InputError(catalog_path, "segment " + std::to_string(c.id) + " of scene " +
+                                         std::to_string(id) + " has a damaged vertex list");
+    }
+    scene.candidates.measures.push_back(c.measures);
+    scene.candidates.segments.push_back(fromCatalog(std::move(c)));
+  }
+  log::debug(scene.name + ": candidates from the catalog");
+}
+
+/// Candidates and measures of one scene: the catalog's when it knows the mesh with these
+/// settings, else found now (and added to the catalog).
+void findOrRecall(DiscoveredScene& scene, const std::string& content_hash,
+                  const SceneDiscoveryOptions& options, const std::string& settings,
+                  Catalog* catalog, std::int64_t index) {
+  std::optional<CatalogScene> known;
+  if (catalog && !content_hash.empty()) known = catalog->findScene(content_hash, settings);
+  if (known && known->vertex_count == scene.mesh.positions.size()) {
+    takeFromCatalog(*catalog, *options.catalog, known->id, scene);
+    return;
+  }
+  scene.candidates = findCandidates(scene.mesh, options.config);
+  // Without a catalog entry, an id no catalog scene has (catalog ids start at 1).
+  scene.scene_id = catalog ? -1 - index : index;
+  if (catalog && !content_hash.empty()) {
+    CatalogScene entry;
+    entry.name = scene.name;
+    entry.content_hash = content_hash;
+    entry.vertex_count = scene.mesh.positions.size();
+    entry.settings = settings;
+    std::vector<CatalogSegment> rows;
+    for (std::size_t i = 0; i < scene.candidates.segments.size(); ++i) {
+      rows.push_back(toCatalog(scene.candidates.segments[i], scene.candidates.measures[i]));
+    }
+    scene.scene_id = catalog->addScene(entry, rows);
+  }
+}
+
+/// Recurrence against every other scene known (the whole catalog's with these settings, or this
+/// run's scenes), then the normaliser.
+void addRecurrenceAndNormalise(SceneDiscovery& run, Catalog* catalog, const std::string& settings,
+                               const DiscoveryConfig& config) {
+  std::vector<RecurrenceEntry> entries;
+  if (catalog) {
+    // Only scenes measured with these settings: another run of the same mesh with other
+    // settings would otherwise be its own nearest "other scene".
+    std::set<std::int64_t> comparable;
+    for (const CatalogScene& c : catalog->scenes()) {
+      if (c.settings == settings) comparable.insert(c.id);
+    }
+    run.catalog_scenes = comparable.size();
+    for (RecurrenceEntry& e : catalog->recurrenceEntries()) {
+      if (comparable.count(e.scene_id)) entries.push_back(std::move(e));
+    }
+  } else {
+    for (const DiscoveredScene& s : run.scenes) {
+      for (std::size_t i = 0; i < s.candidates.segments.size(); ++i) {
+        entries.push_back({s.scene_id, s.candidates.segments[i].extents,
+                           recurrenceMeasures(s.candidates.measures[i])});
+      }
+    }
+  }
+  std::vector<ShapeMeasures> pool;
+  if (catalog) {
+    run.catalog_segments = entries.size();
+    for (const RecurrenceEntry& e : entries) {
+      ShapeMeasures m;
+      m.compactness = e.measures[0];
+      m.symmetry = e.measures[1];
+      m.smoothness = e.measures[2];
+      m.local_convexity = e.measures[3];
+      m.global_convexity = e.measures[4];
+      pool.push_back(m);
+    }
+  }
+  const RecurrenceIndex index(std::move(entries));
+  std::vector<ShapeMeasures> measured;
+  for (DiscoveredScene& s : run.scenes) {
+    addRecurrence(s.candidates, index, s.scene_id, config);
+    measured.insert(measured.end(), s.candidates.measures.begin(), s.candidates.measures.end());
+  }
+  const MeasureNormaliser own = MeasureNormaliser::fit(measured);
+  run.normaliser = catalog ? MeasureNormaliser::fit(pool) : own;
+  run.normaliser.mean[5] = own.mean[5];
+  run.normaliser.sd[5] = own.sd[5];
+}
+
+double processCpuMs() {
+  timespec t{};
+  ::clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return 1e3 * static_cast<double>(t.tv_sec) + 1e-6 * static_cast<double>(t.tv_nsec);
+}
+
+/// Scores and suppression within each scene (timed as its suppress stage), then every scene's
+/// hypotheses best first.
+void rankAll(SceneDiscovery& run, const ObjectnessModel& scorer, double max_iou) {
+  for (std::size_t s = 0; s < run.scenes.size(); ++s) {
+    DiscoveryTimings& t = run.scenes[s].candidates.timings;
+    const auto wall = SteadyClock::now();
+    const double cpu = processCpuMs();
+    for (Hypothesis& h : rankCandidates(run.scenes[s].candidates, scorer, max_iou)) {
+      run.ranked.push_back({s, std::move(h)});
+      ++run.scenes[s].hypotheses;
+    }
+    t.suppress_ms = millisecondsSince(wall);
+    t.suppress_cpu_ms = processCpuMs() - cpu;
+  }
+  std::stable_sort(run.ranked.begin(), run.ranked.end(),
+                   [](const RankedHypothesis& a, const RankedHypothesis& b) {
+                     return a.hypothesis.score > b.hypothesis.score;
+                   });
+}
+
+}  // namespace
+
+SceneInput loadScene(const fs::path& argument, bool labelled) {
+  SceneInput scene;
+  const fs::path mesh_path = meshOf(argument);
+  scene.name = mesh_path.string();
+  scene.mesh = readPly(mesh_path);
+  try {
+    prepareSceneMesh(scene.mesh);
+  } catch (const std::invalid_argument& e) {
+    throw InputError(mesh_path, e.what());
+  }
+  scene.content_hash = contentHash(mesh_path);
+  if (labelled) {
+    try {
+      scene.truth.emplace(groundTruthLabels(argument, scene.mesh));
+    } catch (const std::invalid_argument& e) {
+      throw InputError(argument, e.what());
+    }
+  }
+  return scene;
+}
+
+SceneInput sceneFromMesh(std::string name, TriangleMesh mesh, std::string content_hash) {
+  SceneInput scene;
+  scene.name = std::move(name);
+  scene.mesh = std::move(mesh);
+  prepareSceneMesh(scene.mesh);
+  scene.content_hash = std::move(content_hash);
+  return scene;
+}
+
+fs::path defaultCatalogPath() {
+  fs::path dir;
+  if (const char* env = std::getenv("OBJSCAN_CATALOG"); env && *env) return env;
+  if (const char* xdg = std::getenv("XDG_DATA_HOME"); xdg && *xdg) {
+    dir = fs::path(xdg) / "objscan";
+  } else if (const char* home = std::getenv("HOME"); home && *home) {
+    dir = fs::path(home) / ".local" / "share" / "objscan";
+  } else {
+    throw std::invalid_argument("no default catalog location (HOME is not set): give --catalog");
+  }
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) throw OutputError(dir, "cannot create the catalog's folder: " + ec.message());
+  return dir / "catalog.sqlite";
+}
+
+SceneDiscovery discoverScenes(std::vector<SceneInput> inputs,
+                              const SceneDiscoveryOptions& options) {
+  const auto start = SteadyClock::now();
+  options.config.validate();
+  std::optional<Catalog> catalog;
+  if (options.catalog) catalog.emplace(*options.catalog);
+  const std::string settings = settingsKey(options.config);
+
+  SceneDiscovery run;
+  run.catalog = options.catalog;
+  run.scenes.reserve(inputs.size());
+  ProgressBar progress(options.progress_label, inputs.size());
+  for (SceneInput& input : inputs) {
+    DiscoveredScene scene;
+    scene.name = std::move(input.name);
+    scene.mesh = std::move(input.mesh);
+    scene.truth = std::move(input.truth);
+    findOrRecall(scene, input.content_hash, options, settings, catalog ? &*catalog : nullptr,
+                 static_cast<std::int64_t>(run.scenes.size()));
+    run.scenes.push_back(std::move(scene));
+    progress.advance();
+  }
+  progress.finish();
+  addRecurrenceAndNormalise(run, catalog ? &*catalog : nullptr, settings, options.config);
+
+  const ObjectnessModel scorer =
+      options.model ? *options.model
+                    : ObjectnessModel::average(run.normaliser, varyingMeasures(run.normaliser));
+  rankAll(run, scorer, options.config.max_iou);
+  run.scorer = scorer.kind();
+  run.normalised_over = options.model     ? "the model's training segments"
+                        : options.catalog ? "catalog"
+                                          : "these scenes";
+  run.seconds = secondsSince(start);
+  return run;
+}
+
+std::vector<int> LabelledSegments::labels(double min_iou) const {
+  std::vector<int> out;
+  out.reserve(matches.size());
+  for (const ObjectMatch& m : matches) out.push_back(isObject(m, min_iou));
+  return out;
+}
+
+LabelledSegments labelledSegments(const SceneDiscovery& run, double max_iou) {
+  LabelledSegments out;
+  const ObjectnessModel average =
+      ObjectnessModel::average(run.normaliser, varyingMeasures(run.normaliser));
+  for (std::size_t s = 0; s < run.scenes.size(); ++s) {
+    if (!run.scenes[s].truth) {
+      throw std::invalid_argument(run.scenes[s].name +
+                                  ": a labelled run needs every scene's truth");
+    }
+    const GroundTruthObjects& truth = *run.scenes[s].truth;
+    for (const Hypothesis& h : rankCandidates(run.scenes[s].candidates, average, max_iou)) {
+      out.measures.push_back(h.measures);
+      out.matches.push_back(truth.bestMatch(h.segment.vertices));
+      out.scene.push_back(s);
+    }
+  }
+  return out;
+}
+
+std::vector<Hypothesis> discoverObjects(const TriangleMesh& mesh, const DiscoveryConfig& config,
+                                        DiscoveryTimings* timings) {
+  SceneDiscoveryOptions options;
+  options.config = config;
+  options.progress_label.clear();
+  std::vector<SceneInput> one;
+  one.push_back(sceneFromMesh("mesh", mesh));
+  SceneDiscovery run = discoverScenes(std::move(one), options);
+  if (timings) *timings = run.scenes.at(0).candidates.timings;
+  std::vector<Hypothesis> out;
+  out.reserve(run.ranked.size());
+  for (RankedHypothesis& r : run.ranked) out.push_back(std::move(r.hypothesis));
+  return out;
+}
+
+}  // namespace objscan::discovery

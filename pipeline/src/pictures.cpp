@@ -1,0 +1,105 @@
+#include "objscan/pipeline/pictures.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "objscan/core/clock.h"
+#include "objscan/core/error.h"
+#include "objscan/core/progress.h"
+#include "objscan/report/results_io.h"
+
+namespace objscan::pipeline {
+namespace {
+
+report::Picture encodePng(const cv::Mat& image) {
+  std::vector<unsigned char> bytes;
+  if (!cv::imencode(".png", image, bytes)) throw std::runtime_error("could not encode a PNG");
+  report::Picture p;
+  p.png.assign(reinterpret_cast<const char*>(bytes.data()), bytes.size());
+  p.width = static_cast<std::uint32_t>(image.cols);
+  p.height = static_cast<std::uint32_t>(image.rows);
+  return p;
+}
+
+std::vector<render::PaintedHypothesis> painted(
+    const TriangleMesh& mesh, const std::vector<report::HypothesisRecord>& hypotheses,
+    std::size_t top, const std::string& what) {
+  std::vector<render::PaintedHypothesis> out;
+  for (const report::HypothesisRecord& h : hypotheses) {
+    if (out.size() == top) break;
+    if (h.vertices.empty()) {
+      throw InputError(what, "hypothesis " + std::to_string(h.rank) + " has no vertices");
+    }
+    for (std::int32_t v : h.vertices) {
+      if (v < 0 || static_cast<std::size_t>(v) >= mesh.positions.size()) {
+        throw InputError(what, "hypothesis " + std::to_string(h.rank) + " names vertex " +
+                                   std::to_string(v) + ", but its scene has " +
+                                   std::to_string(mesh.positions.size()) + " vertices");
+      }
+    }
+    out.push_back({h.rank, h.score.value_or(NAN), h.vertices});
+  }
+  return out;
+}
+
+}  // namespace
+
+void PictureOptions::validate() const {
+  if (top == 0) throw std::invalid_argument("--top must be at least 1");
+  if (width < 64 || height < 48 || width > 8192 || height > 8192) {
+    throw std::invalid_argument("--size must lie between 64x48 and 8192x8192");
+  }
+}
+
+PicturesOutcome renderPictures(const TriangleMesh& mesh, const Trajectory* trajectory,
+                               const std::vector<report::HypothesisRecord>& hypotheses,
+                               const PictureOptions& options, const std::string& what) {
+  const auto start = SteadyClock::now();
+  options.validate();
+  const auto stopped = [&options] { return options.stop && options.stop->load(); };
+  PicturesOutcome out;
+  std::vector<render::PaintedHypothesis> paint = painted(mesh, hypotheses, options.top, what);
+  out.painted = paint.size();
+  report::Pictures& pictures = out.pictures;
+  ProgressBar progress(options.progress_label, out.painted + 2);
+  render::SnapshotRenderer renderer(mesh, paint);
+  const render::SnapshotView view =
+      render::overviewView(mesh, trajectory, paint, options.width, options.height, options.view);
+  out.view = view.kind;
+  pictures.camera =
+      report::OverviewCamera{render::toString(view.kind), view.T_W_C, view.intrinsics};
+  const render::Snapshot overview = renderer.overview(view);
+  pictures.overview = encodePng(overview.bgr);
+  pictures.visible = overview.labelled;
+  ++out.images;
+  if (options.ranks_image) {
+    cv::Mat ranks16;
+    overview.ranks.convertTo(ranks16, CV_16U);
+    pictures.overview_ranks = encodePng(ranks16);
+    ++out.images;
+  }
+  progress.advance();
+  const int w = std::max(160, options.width * 3 / 8), h = std::max(120, options.height * 3 / 8);
+  std::vector<cv::Mat> closeups;
+  for (std::size_t i = 0; i < paint.size() && !stopped(); ++i) {
+    closeups.push_back(renderer.closeUp(i, view, w, h).bgr);
+    pictures.closeups[paint[i].rank] = encodePng(closeups.back());
+    ++out.images;
+    progress.advance();
+  }
+  if (stopped()) {
+    out.interrupted = true;
+  } else if (!closeups.empty()) {
+    pictures.contact_sheet = encodePng(render::contactSheet(closeups, paint));
+    ++out.images;
+    progress.advance();
+  }
+  out.seconds = secondsSince(start);
+  return out;
+}
+
+}  // namespace objscan::pipeline

@@ -1,0 +1,88 @@
+#pragma once
+
+#include <cstddef>
+#include <filesystem>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "objscan/discovery/evaluation.h"
+#include "objscan/discovery/scenes.h"
+#include "objscan/report/results.h"
+
+/// One writer and one reader for each file of a results folder. Writers write atomically
+/// (temporary name, then rename; folders staged as NAME.partial and swapped in whole) and throw
+/// OutputError; readers throw InputError naming the file and, for a JSON file, the key that is
+/// missing or of the wrong type (a damaged file, or one an older objscan wrote).
+namespace objscan::report {
+
+/// The names of a results folder's files.
+inline constexpr const char* kMeshFile = "mesh.ply";
+inline constexpr const char* kTrajectoryFile = "trajectory.txt";
+inline constexpr const char* kHypothesesFile = "hypotheses.json";
+inline constexpr const char* kObjectsFolder = "objects";
+inline constexpr const char* kEvaluationFile = "evaluation.json";
+inline constexpr const char* kRendersFolder = "renders";
+inline constexpr const char* kTimingsFile = "timings.json";
+inline constexpr const char* kSettingsFile = "settings.json";
+inline constexpr const char* kReportFile = "report.html";
+
+/// The file of rank `rank` in objects/ (".ply") or renders/ (".png"): rank_001.ply, ...
+std::string rankFileName(std::size_t rank, const char* extension);
+
+// ---- hypotheses.json and objects/ --------------------------------------------------------------
+
+/// hypotheses.json's record of a discovery run; `model` is the model file scored with (empty for
+/// the average).
+Hypotheses hypothesesFrom(const discovery::SceneDiscovery& run, const std::string& model);
+
+/// Writes DIR/objects/rank_NNN.ply (each hypothesis's sub-mesh of run.scenes[...].mesh) staged,
+/// then DIR/hypotheses.json, then swaps objects/ in: a failure before the swap leaves the
+/// previous run's pair as it was.
+void writeDiscovery(const std::filesystem::path& dir, const Hypotheses& hypotheses,
+                    const discovery::SceneDiscovery& run);
+
+void writeHypotheses(const std::filesystem::path& file, const Hypotheses& hypotheses);
+/// Requires "hypotheses" (each with a rank >= 1) and each scene's "mesh".
+Hypotheses readHypotheses(const std::filesystem::path& file);
+
+// ---- evaluation.json ---------------------------------------------------------------------------
+
+/// evaluation.json's record of an evaluation; `names` are the objects' names by id.
+Evaluation evaluationFrom(const discovery::RankingEvaluation& evaluation,
+                          const std::string& ground_truth,
+                          const std::map<std::int32_t, std::string>& names);
+void writeEvaluation(const std::filesystem::path& file, const Evaluation& evaluation);
+Evaluation readEvaluation(const std::filesystem::path& file);
+
+// ---- timings.json ------------------------------------------------------------------------------
+
+void writeTimings(const std::filesystem::path& file, const Timings& timings);
+Timings readTimings(const std::filesystem::path& file);
+
+// ---- renders/ ----------------------------------------------------------------------------------
+
+/// Writes DIR/renders/ (overview.png, overview_ranks.png, overview_camera.json, rank_NNN.png,
+/// contact_sheet.png: those present) into a fresh renders.partial, swapped in whole.
+void writePictures(const std::filesystem::path& dir, const Pictures& pictures);
+/// Reads DIR/renders/'s pictures (those present; the close-ups of `ranks`) and its camera.
+/// InputError for a file that is not a PNG, or a camera file of the wrong shape.
+Pictures readPictures(const std::filesystem::path& dir, const std::vector<std::size_t>& ranks);
+/// A PNG's size from its header; InputError naming `what` when the bytes are not a PNG.
+Picture pictureFromPng(std::string png, const std::string& what);
+
+// ---- settings.json -----------------------------------------------------------------------------
+
+void writeSettings(const std::filesystem::path& file, const Settings& settings);
+Settings readSettings(const std::filesystem::path& file);
+/// The same reader on the file's text (`file` names it in errors).
+Settings parseSettings(const std::string& text, const std::filesystem::path& file);
+
+// ---- the folder --------------------------------------------------------------------------------
+
+/// What a results folder holds: every file present read by its reader (the mesh only with
+/// `with_mesh`; the close-ups of the ranks hypotheses.json lists, at most `max_closeups`).
+ScanResults readResults(const std::filesystem::path& dir, bool with_mesh,
+                        std::size_t max_closeups = 50);
+
+}  // namespace objscan::report

@@ -1,0 +1,649 @@
+#include "objscan/report/results_io.h"
+
+#include <cmath>
+#include <cstdio>
+#include <string_view>
+#include <system_error>
+#include <unordered_map>
+
+#include <nlohmann/json.hpp>
+
+#include "json_node.h"
+#include "objscan/core/atomic_file.h"
+#include "objscan/core/error.h"
+#include "objscan/core/output_folder.h"
+#include "objscan/core/ply_io.h"
+#include "objscan/core/trajectory.h"
+
+namespace objscan::report {
+namespace {
+
+namespace fs = std::filesystem;
+using json_node::Json;
+using json_node::Node;
+
+void writeJson(const fs::path& file, const Json& doc) {
+  writeFileAtomically(file, doc.dump(1) + "\n");
+}
+
+Json vectorJson(const Eigen::Vector3f& v) { return {v.x(), v.y(), v.z()}; }
+
+/// null: unknown (recurrence without another scene to compare with).
+Json measuresJson(const discovery::ShapeMeasures& m) {
+  Json j;
+  const auto values = discovery::measureValues(m);
+  for (std::size_t k = 0; k < values.size(); ++k) {
+    j[discovery::kMeasureNames[k]] = std::isfinite(values[k]) ? Json(values[k]) : Json(nullptr);
+  }
+  return j;
+}
+
+discovery::ShapeMeasures measuresFrom(const std::optional<Node>& node) {
+  std::array<double, discovery::kMeasureCount> v;
+  v.fill(NAN);
+  if (node) {
+    for (std::size_t k = 0; k < v.size(); ++k) {
+      v[k] = node->number(discovery::kMeasureNames[k]).value_or(NAN);
+    }
+  }
+  discovery::ShapeMeasures m;
+  m.compactness = v[0];
+  m.symmetry = v[1];
+  m.smoothness = v[2];
+  m.local_convexity = v[3];
+  m.global_convexity = v[4];
+  m.recurrence = v[5];
+  return m;
+}
+
+OrientedBox boxOf(const TriangleMesh& mesh, const discovery::Segment& s) {
+  Eigen::Vector3f lo = Eigen::Vector3f::Constant(INFINITY), hi = -lo;
+  for (std::int32_t v : s.vertices) {
+    const Eigen::Vector3f p = s.axes.transpose() * (mesh.positions[v] - s.centroid);
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  OrientedBox box;
+  box.centre = s.centroid + s.axes * (0.5f * (lo + hi));
+  box.axes = s.axes;
+  box.extents = hi - lo;
+  return box;
+}
+
+Eigen::Vector3f vector3(const std::vector<double>& v) {
+  return Eigen::Vector3f(static_cast<float>(v[0]), static_cast<float>(v[1]),
+                         static_cast<float>(v[2]));
+}
+
+std::optional<OrientedBox> boxFrom(const std::optional<Node>& node) {
+  if (!node) return std::nullopt;
+  OrientedBox box;
+  if (const auto c = node->numbers("centre", 3)) box.centre = vector3(*c);
+  if (const auto e = node->numbers("extents", 3)) box.extents = vector3(*e);
+  if (const Json* axes = node->get("axes")) {
+    if (!axes->is_array() || axes->size() != 3) node->fail(node->keyPath("axes"), "is not 3 axes");
+    for (int k = 0; k < 3; ++k) {
+      box.axes.col(k) = vector3(node->numbersIn((*axes)[k], node->keyPath("axes"), 3));
+    }
+  }
+  return box;
+}
+
+}  // namespace
+
+std::string rankFileName(std::size_t rank, const char* extension) {
+  char name[48];
+  std::snprintf(name, sizeof name, "rank_%03zu%s", rank, extension);
+  return name;
+}
+
+// ---- hypotheses.json ---------------------------------------------------------------------------
+
+Hypotheses hypothesesFrom(const discovery::SceneDiscovery& run, const std::string& model) {
+  Hypotheses out;
+  out.scoring = Scoring{discovery::toString(run.scorer), model, run.normalised_over};
+  if (run.catalog)
+    out.catalog = CatalogUse{run.catalog->string(), run.catalog_scenes, run.catalog_segments};
+  for (const discovery::DiscoveredScene& scene : run.scenes) {
+    SceneRecord r;
+    r.mesh = scene.name;
+    r.vertices = scene.mesh.positions.size();
+    r.faces = scene.mesh.triangles.size();
+    r.candidates = scene.candidates.segments.size();
+    r.hypotheses = scene.hypotheses;
+    r.from_catalog = scene.from_catalog;
+    if (!scene.from_catalog) {
+      const discovery::DiscoveryTimings& t = scene.candidates.timings;
+      r.findings =
+          SceneFindings{scene.candidates.effective.median_edge_m,
+                        scene.candidates.effective.min_size,
+                        scene.candidates.support_planes,
+                        scene.candidates.support_vertices,
+                        {t.graph_ms, t.support_ms, t.segment_ms, t.filter_ms, t.measure_ms}};
+    }
+    out.scenes.push_back(std::move(r));
+  }
+  for (std::size_t i = 0; i < run.ranked.size(); ++i) {
+    const discovery::DiscoveredScene& scene = run.scenes[run.ranked[i].scene];
+    const discovery::Hypothesis& h = run.ranked[i].hypothesis;
+    HypothesisRecord r;
+    r.rank = i + 1;
+    r.score = h.score;
+    r.scene = scene.name;
+    r.measures = h.measures;
+    r.box = boxOf(scene.mesh, h.segment);
+    r.scale = h.segment.scale;
+    r.vertices = h.segment.vertices;
+    r.vertex_count = h.segment.vertices.size();
+    r.file = std::string(kObjectsFolder) + "/" + rankFileName(i + 1, ".ply");
+    out.hypotheses.push_back(std::move(r));
+  }
+  return out;
+}
+
+void writeDiscovery(const fs::path& dir, const Hypotheses& hypotheses,
+                    const discovery::SceneDiscovery& run) {
+  const fs::path partial = freshPartialFolder(dir, kObjectsFolder);
+  for (std::size_t i = 0; i < run.ranked.size(); ++i) {
+    const TriangleMesh& mesh = run.scenes[run.ranked[i].scene].mesh;
+    writePly(partial / fs::path(hypotheses.hypotheses.at(i).file).filename(),
+             mesh.subset(run.ranked[i].hypothesis.segment.vertices));
+  }
+  writeHypotheses(dir / kHypothesesFile, hypotheses);
+  swapInFolder(dir, kObjectsFolder);
+}
+
+void writeHypotheses(const fs::path& file, const Hypotheses& hyp) {
+  Json doc;
+  if (hyp.scoring) {
+    doc["scoring"] = {
+        {"kind", hyp.scoring->kind},
+        {"model", hyp.scoring->model.empty() ? Json(nullptr) : Json(hyp.scoring->model)},
+        {"normalised_over", hyp.scoring->normalised_over}};
+  }
+  if (hyp.catalog) {
+    doc["catalog"] = {{"path", hyp.catalog->path},
+                      {"scenes", hyp.catalog->scenes},
+                      {"segments", hyp.catalog->segments}};
+  }
+  Json scenes = Json::array();
+  for (const SceneRecord& s : hyp.scenes) {
+    Json j = {{"mesh", s.mesh}, {"from_catalog", s.from_catalog}};
+    if (s.vertices) j["vertices"] = *s.vertices;
+    if (s.faces) j["faces"] = *s.faces;
+    if (s.candidates) j["candidates"] = *s.candidates;
+    if (s.hypotheses) j["hypotheses"] = *s.hypotheses;
+    if (s.findings) {
+      const SceneFindings& f = *s.findings;
+      j["median_edge_m"] = f.median_edge_m;
+      j["min_size"] = f.min_size;
+      j["support_planes"] = f.support_planes;
+      j["support_vertices"] = f.support_vertices;
+      j["timings_ms"] = {{"graph", f.timings_ms.graph},
+                         {"supports", f.timings_ms.supports},
+                         {"segmentation", f.timings_ms.segmentation},
+                         {"filters", f.timings_ms.filters},
+                         {"measures", f.timings_ms.measures}};
+    }
+    scenes.push_back(j);
+  }
+  doc["scenes"] = scenes;
+  Json list = Json::array();
+  for (const HypothesisRecord& h : hyp.hypotheses) {
+    Json j = {{"rank", h.rank},
+              {"scene", h.scene},
+              {"measures", measuresJson(h.measures)},
+              {"vertex_count", h.vertex_count.value_or(h.vertices.size())},
+              {"vertices", h.vertices},
+              {"file", h.file}};
+    if (h.score) j["score"] = *h.score;
+    if (h.scale) j["scale"] = *h.scale;
+    if (h.box) {
+      j["box"] = {{"centre", vectorJson(h.box->centre)},
+                  {"axes",
+                   {vectorJson(h.box->axes.col(0)), vectorJson(h.box->axes.col(1)),
+                    vectorJson(h.box->axes.col(2))}},
+                  {"extents", vectorJson(h.box->extents)}};
+    }
+    list.push_back(j);
+  }
+  doc["hypotheses"] = list;
+  writeJson(file, doc);
+}
+
+Hypotheses readHypotheses(const fs::path& file) {
+  if (!fs::exists(file)) {
+    throw InputError(file,
+                     "missing: run `objscan discover` or `objscan scan` into this folder first");
+  }
+  const Json doc = json_node::parseFile(file);
+  const Node top(file, doc, "");
+  if (top.get("hypotheses") == nullptr) top.fail("hypotheses", "is missing");
+  Hypotheses out;
+  if (const std::optional<Node> s = top.object("scoring")) {
+    out.scoring = Scoring{s->string("kind").value_or(""), s->string("model").value_or(""),
+                          s->string("normalised_over").value_or("")};
+  }
+  if (const std::optional<Node> c = top.object("catalog")) {
+    out.catalog = CatalogUse{c->string("path").value_or(""), c->count("scenes").value_or(0),
+                             c->count("segments").value_or(0)};
+  }
+  for (const Node& s : top.objects("scenes")) {
+    SceneRecord r;
+    r.mesh = s.require("mesh", s.string("mesh"));
+    r.vertices = s.count("vertices");
+    r.faces = s.count("faces");
+    r.candidates = s.count("candidates");
+    r.hypotheses = s.count("hypotheses");
+    r.from_catalog = s.boolean("from_catalog").value_or(false);
+    if (const std::optional<Node> t = s.object("timings_ms")) {
+      r.findings =
+          SceneFindings{s.number("median_edge_m").value_or(NAN),
+                        s.count("min_size").value_or(0),
+                        s.count("support_planes").value_or(0),
+                        s.count("support_vertices").value_or(0),
+                        {t->number("graph").value_or(0), t->number("supports").value_or(0),
+                         t->number("segmentation").value_or(0), t->number("filters").value_or(0),
+                         t->number("measures").value_or(0)}};
+    }
+    out.scenes.push_back(std::move(r));
+  }
+  for (const Node& h : top.objects("hypotheses")) {
+    HypothesisRecord r;
+    const std::optional<std::int64_t> rank = h.integer("rank");
+    if (!rank || *rank < 1) h.fail(h.keyPath("rank"), "is missing or not a rank (1, 2, ...)");
+    r.rank = static_cast<std::size_t>(*rank);
+    r.score = h.number("score");
+    r.scene = h.string("scene").value_or("");
+    r.measures = measuresFrom(h.object("measures"));
+    r.box = boxFrom(h.object("box"));
+    if (const std::optional<double> scale = h.number("scale")) r.scale = static_cast<float>(*scale);
+    if (const Json* v = h.get("vertices")) {
+      if (!v->is_array()) h.fail(h.keyPath("vertices"), "is not an array of vertex indices");
+      r.vertices.reserve(v->size());
+      for (const Json& e : *v) {
+        if (!e.is_number_integer() || e.get<std::int64_t>() < 0 ||
+            e.get<std::int64_t>() > INT32_MAX) {
+          h.fail(h.keyPath("vertices"), "holds something that is not a vertex index");
+        }
+        r.vertices.push_back(e.get<std::int32_t>());
+      }
+    }
+    r.vertex_count = h.count("vertex_count");
+    r.file = h.string("file").value_or("");
+    out.hypotheses.push_back(std::move(r));
+  }
+  std::stable_sort(
+      out.hypotheses.begin(), out.hypotheses.end(),
+      [](const HypothesisRecord& a, const HypothesisRecord& b) { return a.rank < b.rank; });
+  return out;
+}
+
+// ---- evaluation.json ---------------------------------------------------------------------------
+
+Evaluation evaluationFrom(const discovery::RankingEvaluation& e, const std::string& ground_truth,
+                          const std::map<std::int32_t, std::string>& names) {
+  Evaluation out;
+  out.ground_truth = ground_truth;
+  out.objects = e.objects;
+  out.found = e.found;
+  out.min_iou = e.min_iou;
+  out.ap = e.ap;
+  for (std::size_t k = 0; k < e.ranks.size(); ++k) {
+    const discovery::RankMatch& m = e.ranks[k];
+    const auto name = names.find(m.match.object_id);
+    out.ranks.push_back({k + 1, m.match.object_id,
+                         m.match.object_id != 0 && name != names.end() ? name->second : "",
+                         m.match.iou, m.found, m.precision, m.recall});
+  }
+  return out;
+}
+
+void writeEvaluation(const fs::path& file, const Evaluation& e) {
+  Json curve = Json::array(), matches = Json::array();
+  for (const EvaluatedRank& r : e.ranks) {
+    curve.push_back({{"rank", r.rank}, {"recall", r.recall}, {"precision", r.precision}});
+    matches.push_back({{"rank", r.rank},
+                       {"object_id", r.object_id},
+                       {"object", r.object.empty() ? Json(nullptr) : Json(r.object)},
+                       {"iou", r.iou},
+                       {"found", r.found}});
+  }
+  writeJson(file, {{"ground_truth", e.ground_truth},
+                   {"objects", e.objects ? Json(*e.objects) : Json(nullptr)},
+                   {"min_iou", e.min_iou},
+                   {"found", e.found ? Json(*e.found) : Json(nullptr)},
+                   {"ap", e.ap},
+                   {"curve", curve},
+                   {"hypotheses", matches}});
+}
+
+Evaluation readEvaluation(const fs::path& file) {
+  const Json doc = json_node::parseFile(file);
+  const Node top(file, doc, "");
+  Evaluation e;
+  e.ground_truth = top.string("ground_truth").value_or("");
+  e.objects = top.count("objects");
+  e.found = top.count("found");
+  e.min_iou = top.number("min_iou").value_or(NAN);
+  e.ap = top.number("ap").value_or(NAN);
+  std::map<std::size_t, EvaluatedRank> by_rank;
+  for (const Node& p : top.objects("curve")) {
+    const std::optional<std::size_t> rank = p.count("rank");
+    if (!rank) continue;
+    EvaluatedRank& r = by_rank[*rank];
+    r.rank = *rank;
+    r.recall = p.number("recall").value_or(NAN);
+    r.precision = p.number("precision").value_or(NAN);
+  }
+  for (const Node& h : top.objects("hypotheses")) {
+    const std::optional<std::size_t> rank = h.count("rank");
+    if (!rank) continue;
+    EvaluatedRank& r = by_rank[*rank];
+    r.rank = *rank;
+    r.object_id = static_cast<std::int32_t>(h.integer("object_id").value_or(0));
+    r.object = h.string("object").value_or("");
+    r.iou = h.number("iou").value_or(NAN);
+    r.found = h.boolean("found").value_or(r.iou >= e.min_iou);
+  }
+  for (auto& [rank, r] : by_rank) e.ranks.push_back(r);
+  return e;
+}
+
+// ---- timings.json ------------------------------------------------------------------------------
+
+void writeTimings(const fs::path& file, const Timings& t) {
+  Json stages = Json::array();
+  for (const StageTime& s : t.stages) stages.push_back({{"name", s.name}, {"seconds", s.seconds}});
+  Json doc = {{"source", t.source},
+              {"interrupted", t.interrupted},
+              {"stages", stages},
+              {"not_produced", t.not_produced}};
+  if (t.total_s) doc["total_s"] = *t.total_s;
+  if (t.frames) {
+    Json f = Json::object();
+    const auto put = [&f](const char* key, const std::optional<std::size_t>& v) {
+      if (v) f[key] = *v;
+    };
+    put("read", t.frames->read);
+    put("fused", t.frames->fused);
+    put("lost", t.frames->lost);
+    put("without_depth", t.frames->without_depth);
+    put("unreadable", t.frames->unreadable);
+    doc["frames"] = f;
+  }
+  if (t.mesh_vertices || t.mesh_faces) {
+    doc["mesh"] = Json::object();
+    if (t.mesh_vertices) doc["mesh"]["vertices"] = *t.mesh_vertices;
+    if (t.mesh_faces) doc["mesh"]["faces"] = *t.mesh_faces;
+  }
+  if (t.hypotheses) doc["hypotheses"] = *t.hypotheses;
+  if (!t.sensor_lost.empty()) doc["sensor_lost"] = t.sensor_lost;
+  writeJson(file, doc);
+}
+
+Timings readTimings(const fs::path& file) {
+  const Json doc = json_node::parseFile(file);
+  const Node top(file, doc, "");
+  Timings t;
+  t.source = top.string("source").value_or("");
+  t.interrupted = top.boolean("interrupted").value_or(false);
+  t.not_produced = top.strings("not_produced");
+  for (const Node& s : top.objects("stages")) {
+    t.stages.push_back({s.string("name").value_or("?"), s.number("seconds").value_or(0.0)});
+  }
+  t.total_s = top.number("total_s");
+  if (const std::optional<Node> f = top.object("frames")) {
+    t.frames = FrameCounts{f->count("read"), f->count("fused"), f->count("lost"),
+                           f->count("without_depth"), f->count("unreadable")};
+  }
+  if (const std::optional<Node> m = top.object("mesh")) {
+    t.mesh_vertices = m->count("vertices");
+    t.mesh_faces = m->count("faces");
+  }
+  t.hypotheses = top.count("hypotheses");
+  t.sensor_lost = top.string("sensor_lost").value_or("");
+  return t;
+}
+
+// ---- renders/ ----------------------------------------------------------------------------------
+
+Picture pictureFromPng(std::string png, const std::string& what) {
+  // 8-byte signature, then the IHDR chunk: length (4), "IHDR", width (4, big-endian), height (4).
+  static constexpr std::string_view kSignature("\x89PNG\r\n\x1a\n", 8);
+  const std::string_view b = png;
+  if (b.size() < 33 || b.substr(0, 8) != kSignature || b.substr(12, 4) != "IHDR") {
+    throw InputError(what, "not a PNG image (it should have been written by `objscan render`)");
+  }
+  auto be32 = [&](std::size_t at) {
+    std::uint32_t v = 0;
+    for (std::size_t i = 0; i < 4; ++i) v = (v << 8) | static_cast<unsigned char>(b[at + i]);
+    return v;
+  };
+  Picture p;
+  p.width = be32(16);
+  p.height = be32(20);
+  if (p.width == 0 || p.height == 0) throw InputError(what, "PNG image of size zero");
+  p.png = std::move(png);
+  return p;
+}
+
+namespace {
+
+std::optional<Picture> readPicture(const fs::path& path) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) return std::nullopt;
+  return pictureFromPng(readWholeFile(path), path.string());
+}
+
+Json cameraJson(const OverviewCamera& c) {
+  Json rows = Json::array();
+  const Eigen::Matrix4f T = c.T_W_C.matrix();
+  for (int r = 0; r < 4; ++r) rows.push_back({T(r, 0), T(r, 1), T(r, 2), T(r, 3)});
+  const Intrinsics& in = c.intrinsics;
+  return {{"view", c.view},
+          {"T_W_C", rows},
+          {"intrinsics",
+           {{"fx", in.fx_px},
+            {"fy", in.fy_px},
+            {"cx", in.cx_px},
+            {"cy", in.cy_px},
+            {"width", in.width_px},
+            {"height", in.height_px}}}};
+}
+
+OverviewCamera readCamera(const fs::path& file) {
+  const Json doc = json_node::parseFile(file);
+  const Node top(file, doc, "");
+  OverviewCamera c;
+  c.view = top.string("view").value_or("");
+  const Json* rows = top.get("T_W_C");
+  if (rows == nullptr || !rows->is_array() || rows->size() != 4) top.fail("T_W_C", "is not 4 rows");
+  Eigen::Matrix4f T;
+  for (int r = 0; r < 4; ++r) {
+    const std::vector<double> row = top.numbersIn((*rows)[r], "T_W_C", 4);
+    for (int k = 0; k < 4; ++k) T(r, k) = static_cast<float>(row[k]);
+  }
+  c.T_W_C.matrix() = T;
+  const Node in = top.require("intrinsics", top.object("intrinsics"));
+  c.intrinsics.fx_px = in.require("fx", in.number("fx"));
+  c.intrinsics.fy_px = in.require("fy", in.number("fy"));
+  c.intrinsics.cx_px = in.require("cx", in.number("cx"));
+  c.intrinsics.cy_px = in.require("cy", in.number("cy"));
+  c.intrinsics.width_px = static_cast<int>(in.require("width", in.integer("width")));
+  c.intrinsics.height_px = static_cast<int>(in.require("height", in.integer("height")));
+  return c;
+}
+
+}  // namespace
+
+void writePictures(const fs::path& dir, const Pictures& pictures) {
+  const fs::path partial = freshPartialFolder(dir, kRendersFolder);
+  // Whatever stops the writing, the staging folder goes: renders/ stays as it was.
+  struct RemoveUnlessSwapped {
+    fs::path path;
+    bool swapped = false;
+    ~RemoveUnlessSwapped() {
+      std::error_code ec;
+      if (!swapped) fs::remove_all(path, ec);
+    }
+  } staging{partial};
+  if (pictures.camera) writeJson(partial / "overview_camera.json", cameraJson(*pictures.camera));
+  const auto put = [&partial](const char* name, const std::optional<Picture>& p) {
+    if (p) writeFileAtomically(partial / name, p->png);
+  };
+  put("overview.png", pictures.overview);
+  put("overview_ranks.png", pictures.overview_ranks);
+  for (const auto& [rank, p] : pictures.closeups) {
+    writeFileAtomically(partial / rankFileName(rank, ".png"), p.png);
+  }
+  put("contact_sheet.png", pictures.contact_sheet);
+  swapInFolder(dir, kRendersFolder);
+  staging.swapped = true;
+}
+
+Pictures readPictures(const fs::path& dir, const std::vector<std::size_t>& ranks) {
+  const fs::path renders = dir / kRendersFolder;
+  Pictures p;
+  p.overview = readPicture(renders / "overview.png");
+  p.overview_ranks = readPicture(renders / "overview_ranks.png");
+  p.contact_sheet = readPicture(renders / "contact_sheet.png");
+  for (std::size_t rank : ranks) {
+    if (auto closeup = readPicture(renders / rankFileName(rank, ".png"))) {
+      p.closeups[rank] = std::move(*closeup);
+    }
+  }
+  std::error_code ec;
+  if (fs::exists(renders / "overview_camera.json", ec)) {
+    p.camera = readCamera(renders / "overview_camera.json");
+  }
+  return p;
+}
+
+// ---- settings.json -----------------------------------------------------------------------------
+
+namespace {
+
+/// A value as JSON: a flag as a boolean, text that is a number as a number, else a string.
+Json settingValue(const std::string& text, bool flag) {
+  if (flag) return text == "true" || text == "1";
+  if (!text.empty()) {
+    std::size_t used = 0;
+    try {
+      const double v = std::stod(text, &used);
+      if (used == text.size() && std::isfinite(v)) {
+        return text.find_first_of(".eE") == std::string::npos ? Json(std::stoll(text)) : Json(v);
+      }
+    } catch (const std::exception&) {
+    }
+  }
+  return text;
+}
+
+std::string settingText(const Node& where, const std::string& name, const Json& v) {
+  if (v.is_string()) return v.get<std::string>();
+  if (v.is_boolean()) return v.get<bool>() ? "true" : "false";
+  if (v.is_number()) return v.dump();
+  where.fail(where.keyPath(name.c_str()), "is neither text, a number nor true/false");
+}
+
+}  // namespace
+
+void writeSettings(const fs::path& file, const Settings& s) {
+  Json options = Json::object();
+  for (const OptionSetting& o : s.options) {
+    if (o.list) {
+      Json values = Json::array();
+      for (const std::string& v : o.values) values.push_back(settingValue(v, o.flag));
+      options[o.name] = values;
+    } else if (!o.values.empty()) {
+      options[o.name] = settingValue(o.values.front(), o.flag);
+    } else {
+      options[o.name] = nullptr;
+    }
+  }
+  Json doc = {{"objscan_version", s.objscan_version}, {"command", s.command}, {"options", options}};
+  if (s.intrinsics) {
+    const Intrinsics& in = *s.intrinsics;
+    doc["intrinsics"] = {{"fx", in.fx_px},
+                         {"fy", in.fy_px},
+                         {"cx", in.cx_px},
+                         {"cy", in.cy_px},
+                         {"width", in.width_px},
+                         {"height", in.height_px},
+                         {"origin", s.intrinsics_origin}};
+  }
+  doc["catalog"] = s.catalog ? Json{{"path", s.catalog->path},
+                                    {"scenes", s.catalog->scenes},
+                                    {"segments", s.catalog->segments}}
+                             : Json(nullptr);
+  writeJson(file, doc);
+}
+
+Settings readSettings(const fs::path& file) { return parseSettings(readWholeFile(file), file); }
+
+Settings parseSettings(const std::string& text, const fs::path& file) {
+  Json doc;
+  try {
+    doc = Json::parse(text);
+  } catch (const Json::exception& e) {
+    throw InputError(file, std::string("not valid JSON: ") + e.what());
+  }
+  const Node top(file, doc, "");
+  Settings s;
+  s.objscan_version = top.string("objscan_version").value_or("");
+  s.command = top.require("command", top.string("command"));
+  const Node options = top.require("options", top.object("options"));
+  for (const auto& [name, value] : options.json().items()) {
+    OptionSetting o;
+    o.name = name;
+    o.flag = value.is_boolean();
+    if (value.is_array()) {
+      o.list = true;
+      for (const Json& v : value) o.values.push_back(settingText(options, name, v));
+    } else if (!value.is_null()) {
+      o.values.push_back(settingText(options, name, value));
+    }
+    s.options.push_back(std::move(o));
+  }
+  if (const std::optional<Node> in = top.object("intrinsics")) {
+    Intrinsics i;
+    i.fx_px = in->require("fx", in->number("fx"));
+    i.fy_px = in->require("fy", in->number("fy"));
+    i.cx_px = in->require("cx", in->number("cx"));
+    i.cy_px = in->require("cy", in->number("cy"));
+    i.width_px = static_cast<int>(in->require("width", in->integer("width")));
+    i.height_px = static_cast<int>(in->require("height", in->integer("height")));
+    s.intrinsics = i;
+    s.intrinsics_origin = in->string("origin").value_or("");
+  }
+  if (const std::optional<Node> c = top.object("catalog")) {
+    s.catalog = CatalogUse{c->string("path").value_or(""), c->count("scenes").value_or(0),
+                           c->count("segments").value_or(0)};
+  }
+  return s;
+}
+
+// ---- the folder --------------------------------------------------------------------------------
+
+ScanResults readResults(const fs::path& dir, bool with_mesh, std::size_t max_closeups) {
+  if (!fs::is_directory(dir)) throw InputError(dir, fs::exists(dir) ? "not a folder" : "missing");
+  ScanResults r;
+  std::error_code ec;
+  const auto present = [&](const char* name) { return fs::exists(dir / name, ec); };
+  r.hypotheses = readHypotheses(dir / kHypothesesFile);
+  if (with_mesh && present(kMeshFile)) r.mesh = readPly(dir / kMeshFile);
+  if (present(kTrajectoryFile)) r.trajectory = readTumTrajectory(dir / kTrajectoryFile);
+  if (present(kEvaluationFile)) r.evaluation = readEvaluation(dir / kEvaluationFile);
+  if (present(kTimingsFile)) r.timings = readTimings(dir / kTimingsFile);
+  if (present(kSettingsFile)) r.settings = readSettings(dir / kSettingsFile);
+  std::vector<std::size_t> ranks;
+  for (const HypothesisRecord& h : r.hypotheses->hypotheses) {
+    if (ranks.size() == max_closeups) break;
+    ranks.push_back(h.rank);
+  }
+  r.pictures = readPictures(dir, ranks);
+  return r;
+}
+
+}  // namespace objscan::report
