@@ -7,6 +7,7 @@
 #include "discover_command.h"
 #include "eval_command.h"
 #include "exit_codes.h"
+#include "objscan/capture/openni.h"
 #include "options.h"
 #include "render_command.h"
 #include "scan_command.h"
@@ -102,7 +103,10 @@ Command addRenderCommand(CLI::App& app) {
       ->required();
   addPictureOptions(render, render_options.pictures);
 
-  return {render, [options] { return runRender(*options); }};
+  return {render, [options, render] {
+            options->settings = commandSettings(*render);
+            return runRender(*options);
+          }};
 }
 
 namespace {

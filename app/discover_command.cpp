@@ -5,6 +5,7 @@
 
 #include "exit_codes.h"
 #include "objscan/core/output_folder.h"
+#include "objscan/core/progress.h"
 #include "objscan/report/results_io.h"
 
 namespace objscan::app {
@@ -77,8 +78,12 @@ int runDiscover(const DiscoverCommandOptions& options) {
   const discovery::SceneDiscoveryOptions library = sceneDiscoveryOptions(options);
   prepareOutputFolder(options.out);
   std::vector<discovery::SceneInput> scenes;
-  for (const std::filesystem::path& mesh : options.meshes) {
-    scenes.push_back(discovery::loadScene(mesh));
+  {
+    ProgressBar progress("reading scenes", options.meshes.size());
+    for (const std::filesystem::path& mesh : options.meshes) {
+      scenes.push_back(discovery::loadScene(mesh, false, library.catalog.has_value()));
+      progress.advance();
+    }
   }
   const discovery::SceneDiscovery run = discovery::discoverScenes(std::move(scenes), library);
   writeDiscoveryResults(options, run);

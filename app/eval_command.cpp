@@ -32,7 +32,13 @@ SceneDiscovery labelledScenes(const std::vector<fs::path>& arguments,
                               const std::optional<fs::path>& catalog) {
   config.validate();
   std::vector<discovery::SceneInput> scenes;
-  for (const fs::path& a : arguments) scenes.push_back(discovery::loadScene(a, true));
+  {
+    ProgressBar progress("reading scenes", arguments.size());
+    for (const fs::path& a : arguments) {
+      scenes.push_back(discovery::loadScene(a, true, catalog.has_value()));
+      progress.advance();
+    }
+  }
   discovery::SceneDiscoveryOptions options;
   options.config = config;
   options.catalog = catalog;
@@ -49,35 +55,18 @@ struct Recall {
   std::size_t hypotheses_05 = 0, hypotheses_07 = 0;  ///< by any candidate kept by suppression
 };
 
-Recall objectRecall(const SceneDiscovery& set, const LabelledSegments& kept) {
+Recall recallTable(const SceneDiscovery& set, const LabelledSegments& kept) {
   Recall r;
-  for (std::size_t s = 0; s < set.scenes.size(); ++s) {
-    const discovery::DiscoveredScene& scene = set.scenes[s];
-    const discovery::GroundTruthObjects& truth = *scene.truth;
-    std::map<std::int32_t, double> best_candidate, best_kept;
-    for (std::int32_t id : truth.objectIds()) best_candidate[id] = best_kept[id] = 0.0;
-    for (const discovery::Segment& seg : scene.candidates.segments) {
-      const discovery::ObjectMatch m = truth.bestMatch(seg.vertices);
-      if (m.object_id != 0)
-        best_candidate[m.object_id] = std::max(best_candidate[m.object_id], m.iou);
-    }
-    for (std::size_t i = 0; i < kept.matches.size(); ++i) {
-      const discovery::ObjectMatch& m = kept.matches[i];
-      if (kept.scene[i] == s && m.object_id != 0) {
-        best_kept[m.object_id] = std::max(best_kept[m.object_id], m.iou);
-      }
-    }
-    for (const auto& [id, iou] : best_candidate) {
-      std::ostringstream row;
-      row << scene.name << ',' << id << ',' << truth.objectSize(id) << ',' << iou << ','
-          << best_kept[id] << '\n';
-      r.csv += row.str();
-      ++r.objects;
-      r.candidates_05 += iou >= 0.5;
-      r.candidates_07 += iou >= 0.7;
-      r.hypotheses_05 += best_kept[id] >= 0.5;
-      r.hypotheses_07 += best_kept[id] >= 0.7;
-    }
+  for (const discovery::ObjectRecall& o : discovery::objectRecall(set, kept)) {
+    std::ostringstream row;
+    row << set.scenes[o.scene].name << ',' << o.object_id << ',' << o.vertices << ','
+        << o.best_candidate_iou << ',' << o.best_hypothesis_iou << '\n';
+    r.csv += row.str();
+    ++r.objects;
+    r.candidates_05 += o.best_candidate_iou >= 0.5;
+    r.candidates_07 += o.best_candidate_iou >= 0.7;
+    r.hypotheses_05 += o.best_hypothesis_iou >= 0.5;
+    r.hypotheses_07 += o.best_hypothesis_iou >= 0.7;
   }
   return r;
 }
@@ -190,7 +179,7 @@ int runEval(const EvalCommandOptions& options) {
   std::printf("scenes        %zu, %zu segments after suppression\n", set.scenes.size(),
               segs.measures.size());
   for (double iou : kLabelIous) evaluateAtIou(options, eval, segs, iou, summary);
-  writeRecall(options.out, objectRecall(set, segs), summary);
+  writeRecall(options.out, recallTable(set, segs), summary);
   writeFileAtomically(options.out / "summary.json", summary.dump(1) + "\n");
   report::Settings settings = options.settings;
   if (set.catalog) {

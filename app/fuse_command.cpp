@@ -4,10 +4,12 @@
 #include <string>
 
 #include "exit_codes.h"
+#include "objscan/capture/openni.h"
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/output_folder.h"
 #include "objscan/core/ply_io.h"
 #include "objscan/core/trajectory.h"
+#include "objscan/fusion/pipeline.h"
 #include "objscan/report/results_io.h"
 #include "options.h"
 #include "stop_signals.h"
@@ -65,7 +67,9 @@ void printFuseSummary(const pipeline::FusedScene& fused, const std::filesystem::
 
 void addFusionSettings(report::Settings& settings, const pipeline::FusedScene& fused,
                        const pipeline::FuseOptions& options) {
-  setSetting(settings, "truncation", exactText(options.config.volume.truncation()));
+  if (!options.config.volume.truncation_m) {
+    settings.resolved.push_back({"truncation", {exactText(options.config.volume.truncation())}});
+  }
   settings.intrinsics = fused.stats.intrinsics;
   settings.intrinsics_origin = fused.stats.intrinsics_origin;
 }

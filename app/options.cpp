@@ -7,6 +7,8 @@
 #include <string>
 
 #include "objscan/core/error.h"
+#include "objscan/core/log.h"
+#include "objscan/render/snapshots.h"
 #include "objscan/report/results_io.h"
 
 namespace objscan::app {
@@ -36,10 +38,21 @@ class SettingsFile : public CLI::Config {
       throw CLI::ConfigError(file + ": the settings of objscan " + settings.command + ", not of " +
                              (command.empty() ? std::string("no command") : command));
     }
+    if (settings.objscan_version != OBJSCAN_VERSION) {
+      log::warning(file + ": written by objscan " + settings.objscan_version + ", this is " +
+                   OBJSCAN_VERSION + "; its options are taken as they are");
+    }
     std::vector<CLI::ConfigItem> out;
     for (const report::OptionSetting& o : settings.options) {
-      if (o.name == "config" || o.values.empty()) continue;  // unset: the command's default
-      if (o.flag && o.values.front() != "true") continue;    // a flag not given
+      if (o.values.empty()) continue;  // unset: the command's default
+      CLI::Option* opt = given.front()->get_option_no_throw("--" + o.name);
+      if (opt == nullptr) opt = given.front()->get_option_no_throw(o.name);
+      if (opt == nullptr) {
+        throw CLI::ConfigError(file + ": \"options." + o.name + "\" is not an option of objscan " +
+                               command + " (written by another version?)");
+      }
+      if (o.flag && o.values.front() != "true") continue;  // a flag not given
+      if (givenHere(*opt)) continue;                       // the command line's value wins
       CLI::ConfigItem item;
       item.parents = {command};
       item.name = o.name;
@@ -49,6 +62,18 @@ class SettingsFile : public CLI::Config {
     return out;
   }
 
+ private:
+  /// The option, or one it excludes (--frames / --seconds, --catalog / --no-catalog), was given
+  /// on the command line: the file's value gives way.
+  static bool givenHere(const CLI::Option& opt) {
+    if (opt.count() > 0) return true;
+    for (const CLI::Option* other : opt.get_excludes()) {
+      if (other->count() > 0) return true;
+    }
+    return false;
+  }
+
+ public:
  private:
   const CLI::App* app_;
 };
@@ -86,12 +111,6 @@ report::Settings commandSettings(const CLI::App& sub) {
   return settings;
 }
 
-void setSetting(report::Settings& settings, const std::string& name, const std::string& value) {
-  for (report::OptionSetting& o : settings.options) {
-    if (o.name == name) o.values = {value};
-  }
-}
-
 std::string exactText(float value) {
   char text[32];
   // The fewest digits that read back to the same float; 9 always do.
@@ -117,9 +136,13 @@ void addFusionOptions(CLI::App* sub, pipeline::FuseOptions& o) {
   sub->add_option("--poses", o.poses,
                   "Integrate at given poses instead of tracking: a TUM trajectory file, or "
                   "'groundtruth' for the source's own");
-  sub->add_option("--start", o.start, "First frame (0-based)")->check(CLI::NonNegativeNumber);
+  sub->add_option("--start", o.start, "First frame (0-based)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   sub->add_option("--end", o.end, "Stop before this frame")->check(CLI::PositiveNumber);
-  sub->add_option("--every", o.every, "Use every n-th frame")->check(CLI::PositiveNumber);
+  sub->add_option("--every", o.every, "Use every n-th frame")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   sub->add_option("--intrinsics", o.intrinsics,
                   "intrinsics.json (fx, fy, cx, cy, width, height) replacing the source's");
   sub->add_flag("--no-color", o.no_color, "Fuse depth only (mesh without colours)");

@@ -40,8 +40,4 @@ void addConfigOption(CLI::App& app);
 /// given or its default (empty where it has none), and objscan's version.
 report::Settings commandSettings(const CLI::App& sub);
 
-/// Sets one option's values in `settings` (a default the command resolves itself, e.g. the
-/// truncation for the voxel size).
-void setSetting(report::Settings& settings, const std::string& name, const std::string& value);
-
 }  // namespace objscan::app

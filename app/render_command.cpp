@@ -7,6 +7,7 @@
 #include "objscan/core/error.h"
 #include "objscan/core/log.h"
 #include "objscan/core/ply_io.h"
+#include "objscan/render/snapshots.h"
 #include "objscan/report/report.h"
 #include "objscan/report/results_io.h"
 #include "stop_signals.h"
@@ -35,7 +36,10 @@ fs::path sceneMeshOf(const fs::path& dir, const report::SceneRecord& scene) {
 
 /// The folder's results with the scene mesh the hypotheses were cut from, checked to be it.
 report::ScanResults readForRendering(const fs::path& dir) {
-  report::ScanResults results = report::readResults(dir, false);
+  // Not the old pictures: they are being replaced, and a damaged one must not stop that.
+  report::ResultsParts parts;
+  parts.pictures = false;
+  report::ScanResults results = report::readResults(dir, parts);
   const fs::path file = dir / report::kHypothesesFile;
   const std::vector<report::SceneRecord>& scenes = results.hypotheses->scenes;
   if (scenes.empty()) throw InputError(file, "lists no scene");
@@ -101,6 +105,15 @@ int runRender(const RenderCommandOptions& options) {
   }
   printPictures("written", outcome, options.dir);
   results.pictures = std::move(outcome.pictures);
+  if (results.settings) {
+    // The folder's settings now say how its pictures were made (scan --config repeats them).
+    for (report::OptionSetting& o : results.settings->options) {
+      for (const report::OptionSetting& r : options.settings.options) {
+        if (r.name == o.name && r.name != "dir") o = r;
+      }
+    }
+    report::writeSettings(options.dir / report::kSettingsFile, *results.settings);
+  }
   std::printf("report        %s\n", report::writeReport(results, options.dir).c_str());
   return kExitSuccess;
 }

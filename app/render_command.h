@@ -10,6 +10,7 @@ namespace objscan::app {
 struct RenderCommandOptions {
   std::filesystem::path dir;  ///< a results folder: hypotheses.json, mesh.ply, trajectory.txt
   pipeline::PictureOptions pictures;
+  report::Settings settings;  ///< render's command line: its picture options go into the folder's
 };
 
 /// Renders the pictures of `results` (its mesh, trajectory and hypotheses of the first scene) and

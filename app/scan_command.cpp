@@ -91,8 +91,8 @@ class ScanRun {
     timings_.not_produced = missing;
     finishTimings();
     report::writeSettings(out_ / report::kSettingsFile, *results_.settings);
-    if (report) report::writeReport(results_, out_);
     report::writeTimings(out_ / report::kTimingsFile, timings_);
+    if (report) report::writeReport(results_, out_);
     std::string list;
     for (const std::string& m : missing) list += (list.empty() ? "" : ", ") + m;
     std::printf("stopped by    Ctrl-C / SIGTERM; not produced: %s\n", list.c_str());

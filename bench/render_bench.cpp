@@ -75,7 +75,7 @@
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/ply_io.h"
 #include "objscan/render/offscreen_renderer.h"
-#include "objscan/render/palette.h"
+#include "objscan/core/palette.h"
 #include "objscan/render/snapshots.h"
 
 // --- Open3D's ray mask --------------------------------------------------------------------------
@@ -282,7 +282,7 @@ void paint(const objscan::TriangleMesh& scene, const std::vector<render::Painted
   for (const auto& h : hyps) order.push_back(&h);
   std::sort(order.begin(), order.end(), [](auto* x, auto* y) { return x->rank > y->rank; });
   for (const render::PaintedHypothesis* h : order) {
-    const auto& c = render::kRankPalette[(h->rank - 1) % render::kRankPalette.size()];
+    const auto& c = objscan::kRankPalette[(h->rank - 1) % objscan::kRankPalette.size()];
     for (std::int32_t v : h->vertices) {
       (*colors)[v] = objscan::Rgb8(c[0], c[1], c[2]);
       (*labels)[v] = static_cast<std::int32_t>(h->rank);

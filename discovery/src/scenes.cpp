@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <map>
 #include <set>
 #include <system_error>
 #include <utility>
@@ -223,7 +224,7 @@ void rankAll(SceneDiscovery& run, const ObjectnessModel& scorer, double max_iou)
 
 }  // namespace
 
-SceneInput loadScene(const fs::path& argument, bool labelled) {
+SceneInput loadScene(const fs::path& argument, bool labelled, bool hash) {
   SceneInput scene;
   const fs::path mesh_path = meshOf(argument);
   scene.name = mesh_path.string();
@@ -233,7 +234,7 @@ SceneInput loadScene(const fs::path& argument, bool labelled) {
   } catch (const std::invalid_argument& e) {
     throw InputError(mesh_path, e.what());
   }
-  scene.content_hash = contentHash(mesh_path);
+  if (hash) scene.content_hash = contentHash(mesh_path);
   if (labelled) {
     try {
       scene.truth.emplace(groundTruthLabels(argument, scene.mesh));
@@ -327,6 +328,30 @@ LabelledSegments labelledSegments(const SceneDiscovery& run, double max_iou) {
       out.measures.push_back(h.measures);
       out.matches.push_back(truth.bestMatch(h.segment.vertices));
       out.scene.push_back(s);
+    }
+  }
+  return out;
+}
+
+std::vector<ObjectRecall> objectRecall(const SceneDiscovery& run, const LabelledSegments& kept) {
+  std::vector<ObjectRecall> out;
+  for (std::size_t s = 0; s < run.scenes.size(); ++s) {
+    const GroundTruthObjects& truth = run.scenes[s].truth.value();
+    std::map<std::int32_t, double> best_candidate, best_kept;
+    for (std::int32_t id : truth.objectIds()) best_candidate[id] = best_kept[id] = 0.0;
+    for (const Segment& seg : run.scenes[s].candidates.segments) {
+      const ObjectMatch m = truth.bestMatch(seg.vertices);
+      if (m.object_id != 0)
+        best_candidate[m.object_id] = std::max(best_candidate[m.object_id], m.iou);
+    }
+    for (std::size_t i = 0; i < kept.matches.size(); ++i) {
+      const ObjectMatch& m = kept.matches[i];
+      if (kept.scene[i] == s && m.object_id != 0) {
+        best_kept[m.object_id] = std::max(best_kept[m.object_id], m.iou);
+      }
+    }
+    for (const auto& [id, iou] : best_candidate) {
+      out.push_back({s, id, truth.objectSize(id), iou, best_kept[id]});
     }
   }
   return out;

@@ -10,7 +10,6 @@
 #include "objscan/core/clock.h"
 #include "objscan/core/error.h"
 #include "objscan/core/progress.h"
-#include "objscan/report/results_io.h"
 
 namespace objscan::pipeline {
 namespace {

@@ -11,7 +11,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "objscan/render/offscreen_renderer.h"
-#include "objscan/render/palette.h"
+#include "objscan/core/palette.h"
 
 namespace objscan::render {
 namespace {

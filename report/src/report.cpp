@@ -17,8 +17,8 @@
 
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/error.h"
+#include "objscan/core/palette.h"
 #include "objscan/discovery/shape_measures.h"
-#include "objscan/render/palette.h"
 #include "objscan/report/results_io.h"
 
 namespace objscan::report {
@@ -657,9 +657,9 @@ std::string hypothesesSection(const Inputs& in) {
     html += std::string("<tr class=\"") + (top ? "top" : "rest") + "\" id=\"rank-" +
             integerText(r.rank) + "\"><td class=\"rank\">";
     if (top) {  // the renderer's colour: ranks past the palette's ten reuse it in order
-      const std::size_t colour = static_cast<std::size_t>(r.rank - 1) % render::kRankPalette.size();
-      html += "<span class=\"swatch\" style=\"background:" + rgb(render::kRankPalette[colour]) +
-              "\"></span>";
+      const std::size_t colour = static_cast<std::size_t>(r.rank - 1) % kRankPalette.size();
+      html +=
+          "<span class=\"swatch\" style=\"background:" + rgb(kRankPalette[colour]) + "\"></span>";
     }
     html += integerText(r.rank) + "</td><td>" + orUnknown(r.score, 3) + "</td>";
     for (const std::optional<double>& m : r.measures) {
@@ -767,6 +767,11 @@ std::string settingsSection(const Settings& st) {
     for (const std::string& v : o.values) values.push_back(escape(v));
     term(o.name,
          values.empty() ? std::string(kUnknown) : "<code>" + joined(values, " ") + "</code>");
+  }
+  for (const OptionSetting& o : st.resolved) {
+    std::vector<std::string> values;
+    for (const std::string& v : o.values) values.push_back(escape(v));
+    term(o.name + " (used)", "<code>" + joined(values, " ") + "</code>");
   }
   if (st.intrinsics) {
     const Intrinsics& in = *st.intrinsics;

@@ -524,18 +524,15 @@ Pictures readPictures(const fs::path& dir, const std::vector<std::size_t>& ranks
 
 namespace {
 
-/// A value as JSON: a flag as a boolean, text that is a number as a number, else a string.
+/// A value as JSON: a flag as a boolean; text that is a number written as JSON writes it ("500",
+/// "0.03") as that number; any other text ("0001", "1e3", a path) as a string, so that reading
+/// it back gives the same text.
 Json settingValue(const std::string& text, bool flag) {
   if (flag) return text == "true" || text == "1";
-  if (!text.empty()) {
-    std::size_t used = 0;
-    try {
-      const double v = std::stod(text, &used);
-      if (used == text.size() && std::isfinite(v)) {
-        return text.find_first_of(".eE") == std::string::npos ? Json(std::stoll(text)) : Json(v);
-      }
-    } catch (const std::exception&) {
-    }
+  try {
+    const Json number = Json::parse(text);
+    if (number.is_number() && number.dump() == text) return number;
+  } catch (const Json::exception&) {
   }
   return text;
 }
@@ -547,11 +544,9 @@ std::string settingText(const Node& where, const std::string& name, const Json& 
   where.fail(where.keyPath(name.c_str()), "is neither text, a number nor true/false");
 }
 
-}  // namespace
-
-void writeSettings(const fs::path& file, const Settings& s) {
+Json settingsJson(const std::vector<OptionSetting>& settings) {
   Json options = Json::object();
-  for (const OptionSetting& o : s.options) {
+  for (const OptionSetting& o : settings) {
     if (o.list) {
       Json values = Json::array();
       for (const std::string& v : o.values) values.push_back(settingValue(v, o.flag));
@@ -562,7 +557,33 @@ void writeSettings(const fs::path& file, const Settings& s) {
       options[o.name] = nullptr;
     }
   }
-  Json doc = {{"objscan_version", s.objscan_version}, {"command", s.command}, {"options", options}};
+  return options;
+}
+
+std::vector<OptionSetting> settingsFrom(const Node& options) {
+  std::vector<OptionSetting> out;
+  for (const auto& [name, value] : options.json().items()) {
+    OptionSetting o;
+    o.name = name;
+    o.flag = value.is_boolean();
+    if (value.is_array()) {
+      o.list = true;
+      for (const Json& v : value) o.values.push_back(settingText(options, name, v));
+    } else if (!value.is_null()) {
+      o.values.push_back(settingText(options, name, value));
+    }
+    out.push_back(std::move(o));
+  }
+  return out;
+}
+
+}  // namespace
+
+void writeSettings(const fs::path& file, const Settings& s) {
+  Json doc = {{"objscan_version", s.objscan_version},
+              {"command", s.command},
+              {"options", settingsJson(s.options)}};
+  if (!s.resolved.empty()) doc["resolved"] = settingsJson(s.resolved);
   if (s.intrinsics) {
     const Intrinsics& in = *s.intrinsics;
     doc["intrinsics"] = {{"fx", in.fx_px},
@@ -593,19 +614,9 @@ Settings parseSettings(const std::string& text, const fs::path& file) {
   Settings s;
   s.objscan_version = top.string("objscan_version").value_or("");
   s.command = top.require("command", top.string("command"));
-  const Node options = top.require("options", top.object("options"));
-  for (const auto& [name, value] : options.json().items()) {
-    OptionSetting o;
-    o.name = name;
-    o.flag = value.is_boolean();
-    if (value.is_array()) {
-      o.list = true;
-      for (const Json& v : value) o.values.push_back(settingText(options, name, v));
-    } else if (!value.is_null()) {
-      o.values.push_back(settingText(options, name, value));
-    }
-    s.options.push_back(std::move(o));
-  }
+  s.options = settingsFrom(top.require("options", top.object("options")));
+  if (const std::optional<Node> resolved = top.object("resolved"))
+    s.resolved = settingsFrom(*resolved);
   if (const std::optional<Node> in = top.object("intrinsics")) {
     Intrinsics i;
     i.fx_px = in->require("fx", in->number("fx"));
@@ -626,20 +637,21 @@ Settings parseSettings(const std::string& text, const fs::path& file) {
 
 // ---- the folder --------------------------------------------------------------------------------
 
-ScanResults readResults(const fs::path& dir, bool with_mesh, std::size_t max_closeups) {
+ScanResults readResults(const fs::path& dir, const ResultsParts& parts) {
   if (!fs::is_directory(dir)) throw InputError(dir, fs::exists(dir) ? "not a folder" : "missing");
   ScanResults r;
   std::error_code ec;
   const auto present = [&](const char* name) { return fs::exists(dir / name, ec); };
   r.hypotheses = readHypotheses(dir / kHypothesesFile);
-  if (with_mesh && present(kMeshFile)) r.mesh = readPly(dir / kMeshFile);
+  if (parts.mesh && present(kMeshFile)) r.mesh = readPly(dir / kMeshFile);
   if (present(kTrajectoryFile)) r.trajectory = readTumTrajectory(dir / kTrajectoryFile);
   if (present(kEvaluationFile)) r.evaluation = readEvaluation(dir / kEvaluationFile);
   if (present(kTimingsFile)) r.timings = readTimings(dir / kTimingsFile);
   if (present(kSettingsFile)) r.settings = readSettings(dir / kSettingsFile);
+  if (!parts.pictures) return r;
   std::vector<std::size_t> ranks;
   for (const HypothesisRecord& h : r.hypotheses->hypotheses) {
-    if (ranks.size() == max_closeups) break;
+    if (ranks.size() == parts.max_closeups) break;
     ranks.push_back(h.rank);
   }
   r.pictures = readPictures(dir, ranks);

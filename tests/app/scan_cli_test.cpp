@@ -217,6 +217,15 @@ TEST_F(ScanCli, RenderAgainReplacesTheRendersWithTheNewOptions) {
   EXPECT_EQ(readJson(copy / "renders" / "overview_camera.json").at("view"), "three-quarter");
   EXPECT_NE(r.out.find("report        " + (copy / "report.html").string()), std::string::npos)
       << r.out;
+  // The folder's settings now say how its pictures were made; the rest stays the scan's.
+  std::map<std::string, std::vector<std::string>> options;
+  for (const report::OptionSetting& o : report::readSettings(copy / "settings.json").options) {
+    options[o.name] = o.values;
+  }
+  EXPECT_EQ(options["top"], std::vector<std::string>{"3"});
+  EXPECT_EQ(options["view"], std::vector<std::string>{"three-quarter"});
+  EXPECT_EQ(options["size"], std::vector<std::string>{"640x480"});
+  EXPECT_EQ(options["source"], std::vector<std::string>{scene_.string()});
 }
 
 TEST_F(ScanCli, RenderNamesWhatIsMissing) {
@@ -304,26 +313,42 @@ TEST_F(ScanCli, SettingsJsonSaysHowTheRunWasMadeAndConfigRepeatsIt) {
   EXPECT_EQ(options["no-catalog"], std::vector<std::string>{"true"});
   EXPECT_EQ(options["ranks-image"], std::vector<std::string>{"true"});
   EXPECT_EQ(options["voxel-size"], std::vector<std::string>{"0.005859375"});  // every digit
-  EXPECT_EQ(options["truncation"], std::vector<std::string>{"0.03"});  // the default, resolved
+  // The truncation is left to its default (it follows the voxel size), and the value used noted.
+  EXPECT_TRUE(options["truncation"].empty());
+  ASSERT_EQ(settings.resolved.size(), 1u);
+  EXPECT_EQ(settings.resolved[0].name, "truncation");
+  EXPECT_EQ(settings.resolved[0].values, std::vector<std::string>{"0.03"});
   EXPECT_EQ(options["top"], std::vector<std::string>{"5"});
   // The report shows them.
   EXPECT_NE(readWholeFile(out_ / "report.html").find("id=\"settings\""), std::string::npos);
 
-  // The same run again from the file; flags on the command line override it.
+  // The same run again from the file; flags on the command line override it: a smaller top, a
+  // coarser voxel (the truncation, left to its default, follows it: 3 voxels = 6 cm), and a
+  // catalog where the file says --no-catalog (the two exclude each other: the file's gives way).
   const fs::path again = *dir_ / "scan_again";
-  const ProcessResult r = objscan({"scan", "--config", (out_ / "settings.json").string(), "--out",
-                                   again.string(), "--top", "2"});
+  const fs::path catalog = *dir_ / "again.sqlite";
+  const ProcessResult r =
+      objscan({"scan", "--config", (out_ / "settings.json").string(), "--out", again.string(),
+               "--top", "2", "--voxel-size", "0.02", "--catalog", catalog.string()});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_TRUE(fs::exists(again / "renders" / "rank_002.png"));
   EXPECT_FALSE(fs::exists(again / "renders" / "rank_003.png"));
   EXPECT_TRUE(
       fs::exists(again / "renders" / "overview_ranks.png"));  // --ranks-image, from the file
+  EXPECT_TRUE(fs::exists(catalog));
   const report::Settings repeated = report::readSettings(again / "settings.json");
   std::map<std::string, std::vector<std::string>> repeated_options;
   for (const report::OptionSetting& o : repeated.options) repeated_options[o.name] = o.values;
   options["out"] = {again.string()};
   options["top"] = {"2"};
+  options["voxel-size"] = {"0.02"};
+  options["catalog"] = {catalog.string()};
+  options["no-catalog"] = {"false"};
   EXPECT_EQ(repeated_options, options);
+  ASSERT_EQ(repeated.resolved.size(), 1u);
+  EXPECT_EQ(repeated.resolved[0].values, std::vector<std::string>{"0.06"});
+  ASSERT_TRUE(repeated.catalog.has_value());
+  EXPECT_EQ(repeated.catalog->path, catalog.string());
 
   // Settings of another command, or a damaged file: one error line naming it, exit 2.
   expectOneErrorLine(objscan({"discover", "--config", (out_ / "settings.json").string(), "--out",
@@ -333,6 +358,11 @@ TEST_F(ScanCli, SettingsJsonSaysHowTheRunWasMadeAndConfigRepeatsIt) {
   writeFileAtomically(broken, "{\"command\": \"scan\", \"options\": ");
   expectOneErrorLine(objscan({"scan", "--config", broken.string(), "--out", again.string()}), 2,
                      broken.string() + ": not valid JSON");
+  const fs::path foreign = *dir_ / "foreign_settings.json";
+  writeFileAtomically(foreign, "{\"command\": \"scan\", \"options\": {\"frobnicate\": 1}}");
+  expectOneErrorLine(
+      objscan({"scan", "--config", foreign.string(), "--out", again.string()}), 2,
+      foreign.string() + ": \"options.frobnicate\" is not an option of objscan scan");
 }
 
 TEST(ScanCliErrors, AnOutputFolderThatCannotBeWrittenFailsBeforeFusing) {

@@ -9,7 +9,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "objscan/render/palette.h"
+#include "objscan/core/palette.h"
 #include "test_support.h"
 
 namespace objscan::render {

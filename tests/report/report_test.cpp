@@ -25,7 +25,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "objscan/core/error.h"
-#include "objscan/render/palette.h"
+#include "objscan/core/palette.h"
 #include "objscan/report/results_io.h"
 #include "test_support.h"
 
@@ -36,7 +36,7 @@ namespace fs = std::filesystem;
 
 /// The report of a results folder, through the results model's one reader.
 fs::path reportOf(const fs::path& dir) {
-  return report::writeReport(report::readResults(dir, false), dir);
+  return report::writeReport(report::readResults(dir), dir);
 }
 using Json = nlohmann::json;
 using testing::readBytes;
@@ -300,7 +300,7 @@ TEST(Report, RanksEveryHypothesisAndMarksTheTopOnesInTheirOverviewColours) {
     ASSERT_FALSE(r.empty()) << "no row for rank " << rank;
     const bool top = rank <= 3;  // the ranks with a close-up
     EXPECT_EQ(r.starts_with("<tr class=\"top\""), top) << r;
-    const auto& c = render::kRankPalette[static_cast<std::size_t>(rank - 1)];
+    const auto& c = kRankPalette[static_cast<std::size_t>(rank - 1)];
     const std::string swatch = "background:rgb(" + std::to_string(c[0]) + "," +
                                std::to_string(c[1]) + "," + std::to_string(c[2]) + ")";
     EXPECT_EQ(r.find(swatch) != std::string::npos, top) << r;

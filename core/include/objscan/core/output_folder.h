@@ -1,7 +1,5 @@
 #pragma once
 
-#include <cstddef>
-#include <cstdio>
 #include <filesystem>
 #include <string>
 #include <system_error>
@@ -21,14 +19,6 @@ inline void prepareOutputFolder(const std::filesystem::path& out) {
     throw OutputError(out, "cannot create the output folder" +
                                (ec ? ": " + ec.message() : std::string(" (a file is in the way)")));
   }
-}
-
-/// The file of rank `rank` in a results folder's objects/ (".ply") or renders/ (".png"):
-/// rank_001.ply, rank_002.png, ...
-inline std::string rankFileName(std::size_t rank, const char* extension) {
-  char name[48];
-  std::snprintf(name, sizeof name, "rank_%03zu%s", rank, extension);
-  return name;
 }
 
 /// Creates OUT/NAME.partial empty (removing what an interrupted run left there) and returns it.

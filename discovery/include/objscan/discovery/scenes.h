@@ -35,9 +35,11 @@ struct SceneInput {
 /// Reads a scene as the command line names it: a mesh file (.ply), or a folder holding
 /// fused/mesh.ply or mesh.ply. With `labelled`, also its ground truth: scene_gt.ply in the folder
 /// (objscan synth's; its object ids moved onto the mesh by the nearest surface within 1 cm), or
-/// the mesh's own object_id. Throws InputError naming the file for a mesh that cannot be used
-/// (missing, empty, no faces, NaN, ...) or a labelled scene without labels.
-SceneInput loadScene(const std::filesystem::path& argument, bool labelled = false);
+/// the mesh's own object_id. With `hash`, the file's content hash for the catalog (a run without
+/// one need not read the file twice). Throws InputError naming the file for a mesh that cannot be
+/// used (missing, empty, no faces, NaN, ...) or a labelled scene without labels.
+SceneInput loadScene(const std::filesystem::path& argument, bool labelled = false,
+                     bool hash = true);
 
 /// A scene input made from a mesh in memory (normals computed if missing), checked as loadScene
 /// checks a file; `content_hash` as contentHash gives it for the bytes of the mesh's file.
@@ -120,6 +122,18 @@ struct LabelledSegments {
   std::vector<int> labels(double min_iou) const;
 };
 LabelledSegments labelledSegments(const SceneDiscovery& discovery, double max_iou);
+
+/// One ground-truth object of a labelled run and how well the run cut it out.
+struct ObjectRecall {
+  std::size_t scene = 0;  ///< index into SceneDiscovery::scenes
+  std::int32_t object_id = 0;
+  std::size_t vertices = 0;          ///< the object's vertices on the scene mesh
+  double best_candidate_iou = 0.0;   ///< of any candidate (after the filters)
+  double best_hypothesis_iou = 0.0;  ///< of any of `kept` (after suppression)
+};
+/// Object recall: every ground-truth object of every scene, by scene and id.
+std::vector<ObjectRecall> objectRecall(const SceneDiscovery& discovery,
+                                       const LabelledSegments& kept);
 
 /// One scene on its own, through discoverScenes (no catalog, the average score): its hypotheses
 /// best first, empty when it has no object candidates. With `timings`, where the scene's time

@@ -14,7 +14,7 @@
 #include "objscan/core/triangle_mesh.h"
 
 /// Pictures of discovery's results, rendered off-screen (OSMesa): the scene with the top
-/// hypotheses painted in their rank colours (render/palette.h) and labelled with their rank, a
+/// hypotheses painted in their rank colours (core/palette.h) and labelled with their rank, a
 /// close-up of each, and a contact sheet of the close-ups.
 namespace objscan::render {
 

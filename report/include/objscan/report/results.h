@@ -168,6 +168,10 @@ struct Settings {
   std::string objscan_version;
   std::string command;  ///< "scan", "discover", "fuse", ...
   std::vector<OptionSetting> options;
+  /// Values the command worked out from the options, for an option left to its default (e.g.
+  /// "truncation": 3 cm or 3 voxels): the options keep it unset, so that a run repeated with
+  /// another voxel size works it out again.
+  std::vector<OptionSetting> resolved;
   std::optional<Intrinsics> intrinsics;  ///< of the frames fused
   std::string intrinsics_origin;         ///< where they came from
   std::optional<CatalogUse> catalog;     ///< nothing: no catalog

@@ -80,9 +80,15 @@ Settings parseSettings(const std::string& text, const std::filesystem::path& fil
 
 // ---- the folder --------------------------------------------------------------------------------
 
-/// What a results folder holds: every file present read by its reader (the mesh only with
-/// `with_mesh`; the close-ups of the ranks hypotheses.json lists, at most `max_closeups`).
-ScanResults readResults(const std::filesystem::path& dir, bool with_mesh,
-                        std::size_t max_closeups = 50);
+/// Which parts of a results folder readResults reads besides the JSON files.
+struct ResultsParts {
+  bool mesh = false;
+  bool pictures = true;  ///< renders/: the close-ups of the first max_closeups ranks
+  std::size_t max_closeups = 50;
+};
+
+/// What a results folder holds: hypotheses.json (required) and every other file present, read by
+/// its reader.
+ScanResults readResults(const std::filesystem::path& dir, const ResultsParts& parts = {});
 
 }  // namespace objscan::report

@@ -3,7 +3,7 @@
 #include <array>
 #include <cstdint>
 
-namespace objscan::render {
+namespace objscan {
 
 /// The colours (8-bit RGB) that mark the top-ranked hypotheses: kRankPalette[(r - 1) % 10] is
 /// rank r's (ranks past ten reuse them in order). The renderer paints the overview with them and
@@ -23,4 +23,4 @@ inline constexpr std::array<std::array<std::uint8_t, 3>, 10> kRankPalette = {{
     {170, 110, 40},  // 10 brown
 }};
 
-}  // namespace objscan::render
+}  // namespace objscan
