@@ -9,6 +9,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "discover_command.h"
 #include "exit_codes.h"
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/error.h"
@@ -182,10 +183,7 @@ int runEval(const EvalCommandOptions& options) {
   writeRecall(options.out, recallTable(set, segs), summary);
   writeFileAtomically(options.out / "summary.json", summary.dump(1) + "\n");
   report::Settings settings = options.settings;
-  if (set.catalog) {
-    settings.catalog =
-        report::CatalogUse{set.catalog->string(), set.catalog_scenes, set.catalog_segments};
-  }
+  settings.catalog = catalogUse(set);
   report::writeSettings(options.out / report::kSettingsFile, settings);
   std::printf(
       "written       %s (ap.csv, pr_curves.csv/png, *_iou5/8, segments.csv, recall.csv, "

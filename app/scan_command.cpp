@@ -123,14 +123,15 @@ class ScanRun {
     return fused;
   }
 
-  discovery::SceneDiscovery discover(TriangleMesh mesh, const fs::path& truth) {
+  discovery::SceneDiscovery discover(TriangleMesh mesh, const fs::path& truth,
+                                     const discovery::SceneDiscoveryOptions& library) {
     log::info("scan [2/4] discovering objects");
     DiscoverCommandOptions options = options_.discover;
     options.out = out_;
-    discovery::SceneDiscoveryOptions library = sceneDiscoveryOptions(options);
     std::vector<discovery::SceneInput> scenes;
-    scenes.push_back(discovery::sceneFromMesh((out_ / report::kMeshFile).string(), std::move(mesh),
-                                              discovery::contentHashOfBytes(mesh_bytes_)));
+    scenes.push_back(discovery::sceneFromMesh(
+        (out_ / report::kMeshFile).string(), std::move(mesh),
+        library.catalog ? discovery::contentHashOfBytes(mesh_bytes_) : std::string()));
     mesh_bytes_.clear();
     discovery::SceneDiscovery run = discovery::discoverScenes(std::move(scenes), library);
     results_.hypotheses = writeDiscoveryResults(options, run);
@@ -217,7 +218,7 @@ int runScan(ScanCommandOptions options) {
   options.fuse.config.validate();
   options.pictures.validate();
   const fs::path truth = groundTruthOf(options);
-  (void)sceneDiscoveryOptions(options.discover);
+  const discovery::SceneDiscoveryOptions library = sceneDiscoveryOptions(options.discover);
   requireWritableFolder(options.out);
 
   StopSignals signals;
@@ -232,7 +233,7 @@ int runScan(ScanCommandOptions options) {
     }
     std::printf("capture       ended by Ctrl-C after %zu frames\n", fused.stats.frames_read);
   }
-  const discovery::SceneDiscovery found = run.discover(std::move(fused.mesh), truth);
+  const discovery::SceneDiscovery found = run.discover(std::move(fused.mesh), truth, library);
   if (StopSignals::stopRequested()) return run.stopHere({"renders/", "report.html"});
   if (!run.pictures(found.scenes.at(0).mesh)) return run.stopHere({"renders/", "report.html"});
   const fs::path report = run.reportAndTimings();

@@ -762,17 +762,13 @@ std::string settingsSection(const Settings& st) {
   };
   term("objscan", escape(st.objscan_version.empty() ? std::string(kUnknown) : st.objscan_version));
   term("command", "<code>objscan " + escape(st.command) + "</code>");
-  for (const OptionSetting& o : st.options) {
-    std::vector<std::string> values;
-    for (const std::string& v : o.values) values.push_back(escape(v));
-    term(o.name,
-         values.empty() ? std::string(kUnknown) : "<code>" + joined(values, " ") + "</code>");
-  }
-  for (const OptionSetting& o : st.resolved) {
-    std::vector<std::string> values;
-    for (const std::string& v : o.values) values.push_back(escape(v));
-    term(o.name + " (used)", "<code>" + joined(values, " ") + "</code>");
-  }
+  auto values = [](const OptionSetting& o) {
+    std::vector<std::string> escaped;
+    for (const std::string& v : o.values) escaped.push_back(escape(v));
+    return escaped.empty() ? std::string(kUnknown) : "<code>" + joined(escaped, " ") + "</code>";
+  };
+  for (const OptionSetting& o : st.options) term(o.name, values(o));
+  for (const OptionSetting& o : st.resolved) term(o.name + " (used)", values(o));
   if (st.intrinsics) {
     const Intrinsics& in = *st.intrinsics;
     term("intrinsics",
