@@ -69,11 +69,6 @@ void printDiscoverSummary(const DiscoverCommandOptions& options,
               run.seconds);
 }
 
-std::optional<report::CatalogUse> catalogUse(const discovery::SceneDiscovery& run) {
-  if (!run.catalog) return std::nullopt;
-  return report::CatalogUse{run.catalog->string(), run.catalog_scenes, run.catalog_segments};
-}
-
 int runDiscover(const DiscoverCommandOptions& options) {
   const discovery::SceneDiscoveryOptions library = sceneDiscoveryOptions(options);
   prepareOutputFolder(options.out);
@@ -88,7 +83,7 @@ int runDiscover(const DiscoverCommandOptions& options) {
   const discovery::SceneDiscovery run = discovery::discoverScenes(std::move(scenes), library);
   writeDiscoveryResults(options, run);
   report::Settings settings = options.settings;
-  settings.catalog = catalogUse(run);
+  settings.catalog = report::catalogUseOf(run);
   report::writeSettings(options.out / report::kSettingsFile, settings);
   printDiscoverSummary(options, run);
   return kExitSuccess;

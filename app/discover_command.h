@@ -20,9 +20,6 @@ struct DiscoverCommandOptions {
   report::Settings settings;  ///< the command line's, for OUT/settings.json
 };
 
-/// The catalog a discovery run used, as settings.json records it.
-std::optional<report::CatalogUse> catalogUse(const discovery::SceneDiscovery& run);
-
 /// The library's options for these: the config checked, the model loaded, the catalog resolved
 /// (InputError / std::invalid_argument for a bad one, before any work).
 discovery::SceneDiscoveryOptions sceneDiscoveryOptions(const DiscoverCommandOptions& options);

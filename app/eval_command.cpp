@@ -9,7 +9,6 @@
 
 #include <nlohmann/json.hpp>
 
-#include "discover_command.h"
 #include "exit_codes.h"
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/error.h"
@@ -183,7 +182,7 @@ int runEval(const EvalCommandOptions& options) {
   writeRecall(options.out, recallTable(set, segs), summary);
   writeFileAtomically(options.out / "summary.json", summary.dump(1) + "\n");
   report::Settings settings = options.settings;
-  settings.catalog = catalogUse(set);
+  settings.catalog = report::catalogUseOf(set);
   report::writeSettings(options.out / report::kSettingsFile, settings);
   std::printf(
       "written       %s (ap.csv, pr_curves.csv/png, *_iou5/8, segments.csv, recall.csv, "

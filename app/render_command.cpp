@@ -59,8 +59,8 @@ report::ScanResults readForRendering(const fs::path& dir) {
   return results;
 }
 
-}  // namespace
-
+/// Renders the pictures of the folder's first scene (its mesh, trajectory and hypotheses) and
+/// writes DIR/renders/ (swapped in whole; left as it was when stopped).
 pipeline::PicturesOutcome renderAndWritePictures(const fs::path& dir,
                                                  const report::ScanResults& results,
                                                  const pipeline::PictureOptions& options) {
@@ -76,6 +76,8 @@ pipeline::PicturesOutcome renderAndWritePictures(const fs::path& dir,
   if (!outcome.interrupted) report::writePictures(dir, outcome.pictures);
   return outcome;
 }
+
+}  // namespace
 
 void printPictures(const char* label, const pipeline::PicturesOutcome& o, const fs::path& dir) {
   std::string visible;

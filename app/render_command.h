@@ -13,13 +13,6 @@ struct RenderCommandOptions {
   report::Settings settings;  ///< render's command line: its picture options go into the folder's
 };
 
-/// Renders the pictures of `results` (its mesh, trajectory and hypotheses of the first scene) and
-/// writes DIR/renders/ (swapped in whole; left as it was when stopped). `what` names the file the
-/// hypotheses came from, for errors.
-pipeline::PicturesOutcome renderAndWritePictures(const std::filesystem::path& dir,
-                                                 const report::ScanResults& results,
-                                                 const pipeline::PictureOptions& options);
-
 /// Prints the pictures line of render and scan.
 void printPictures(const char* label, const pipeline::PicturesOutcome& outcome,
                    const std::filesystem::path& dir);

@@ -76,22 +76,22 @@ class ScanRun {
  public:
   explicit ScanRun(const ScanCommandOptions& options)
       : options_(options), out_(options.out), start_(SteadyClock::now()) {
-    timings_.source = options.source;
+    results_.timings.emplace().source = options.source;
     results_.settings = options.settings;
   }
 
-  void stage(const char* name, double seconds) { timings_.stages.push_back({name, seconds}); }
+  void stage(const char* name, double seconds) { timings().stages.push_back({name, seconds}); }
 
   /// After a Ctrl-C: what is written stays, the rest is listed as not produced. Once
   /// hypotheses.json exists, the report is written too, with a notice of what is missing.
   int stopHere(std::vector<std::string> missing) {
-    timings_.interrupted = true;
+    timings().interrupted = true;
     const bool report = results_.hypotheses.has_value();
     if (report) std::erase(missing, std::string("report.html"));
-    timings_.not_produced = missing;
+    timings().not_produced = missing;
     finishTimings();
     report::writeSettings(out_ / report::kSettingsFile, *results_.settings);
-    report::writeTimings(out_ / report::kTimingsFile, timings_);
+    report::writeTimings(out_ / report::kTimingsFile, timings());
     if (report) report::writeReport(results_, out_);
     std::string list;
     for (const std::string& m : missing) list += (list.empty() ? "" : ", ") + m;
@@ -109,12 +109,12 @@ class ScanRun {
     const pipeline::FuseStats& s = fused.stats;
     stage("fuse", s.fuse_s);
     stage("mesh", s.mesh_s);
-    timings_.source = s.source_description;
-    timings_.frames = report::FrameCounts{s.frames_read, s.frames_fused, s.frames_lost,
-                                          s.frames_without_depth, s.bad_frames};
-    timings_.mesh_vertices = fused.mesh.positions.size();
-    timings_.mesh_faces = fused.mesh.triangles.size();
-    timings_.sensor_lost = s.sensor_lost;
+    timings().source = s.source_description;
+    timings().frames = report::FrameCounts{s.frames_read, s.frames_fused, s.frames_lost,
+                                           s.frames_without_depth, s.bad_frames};
+    timings().mesh_vertices = fused.mesh.positions.size();
+    timings().mesh_faces = fused.mesh.triangles.size();
+    timings().sensor_lost = s.sensor_lost;
     removeStaleOutputs(out_);
     mesh_bytes_ = writeFused(out_, fused);
     addFusionSettings(*results_.settings, fused, options_.fuse);
@@ -135,9 +135,9 @@ class ScanRun {
     mesh_bytes_.clear();
     discovery::SceneDiscovery run = discovery::discoverScenes(std::move(scenes), library);
     results_.hypotheses = writeDiscoveryResults(options, run);
-    results_.settings->catalog = catalogUse(run);
+    results_.settings->catalog = report::catalogUseOf(run);
     stage("discover", run.seconds);
-    timings_.hypotheses = run.ranked.size();
+    timings().hypotheses = run.ranked.size();
     std::printf("hypotheses    %zu ranked -> %s, %s\n", run.ranked.size(),
                 (out_ / report::kHypothesesFile).c_str(), (out_ / report::kObjectsFolder).c_str());
     if (!truth.empty()) evaluate(truth, run);
@@ -154,14 +154,14 @@ class ScanRun {
     pipeline::PictureOptions pictures = options_.pictures;
     pictures.progress_label = "scan [3/4] rendering pictures";
     pictures.stop = &StopSignals::flag();
-    const pipeline::PicturesOutcome outcome =
+    pipeline::PicturesOutcome outcome =
         pipeline::renderPictures(mesh, &*results_.trajectory, results_.hypotheses->hypotheses,
                                  pictures, (out_ / report::kHypothesesFile).string());
     stage("render", outcome.seconds);
     if (outcome.interrupted) return false;
     report::writePictures(out_, outcome.pictures);
-    results_.pictures = outcome.pictures;
     printPictures("renders", outcome, out_);
+    results_.pictures = std::move(outcome.pictures);
     return true;
   }
 
@@ -173,15 +173,15 @@ class ScanRun {
     const fs::path report = report::writeReport(results_, out_);
     stage("report", secondsSince(report_start));
     finishTimings();
-    report::writeTimings(out_ / report::kTimingsFile, timings_);
+    report::writeTimings(out_ / report::kTimingsFile, timings());
     std::string per_stage;
-    for (const report::StageTime& s : timings_.stages) {
+    for (const report::StageTime& s : timings().stages) {
       char part[64];
       std::snprintf(part, sizeof part, "%s%s %.1f s", per_stage.empty() ? "" : ", ", s.name.c_str(),
                     s.seconds);
       per_stage += part;
     }
-    std::printf("time          %s; total %.1f s\n", per_stage.c_str(), *timings_.total_s);
+    std::printf("time          %s; total %.1f s\n", per_stage.c_str(), *timings().total_s);
     return report;
   }
 
@@ -196,17 +196,16 @@ class ScanRun {
                 results_.evaluation->ap, truth.c_str());
   }
 
-  void finishTimings() {
-    timings_.total_s = secondsSince(start_);
-    results_.timings = timings_;
-  }
+  /// timings.json as far as the run has come; the report shows it.
+  report::Timings& timings() { return *results_.timings; }
+
+  void finishTimings() { timings().total_s = secondsSince(start_); }
 
   const ScanCommandOptions& options_;
   fs::path out_;
   SteadyClock::time_point start_;
-  report::ScanResults results_;
-  report::Timings timings_;
-  std::string mesh_bytes_;  ///< mesh.ply's, until discovery has hashed them
+  report::ScanResults results_;  ///< everything written so far, and the timings
+  std::string mesh_bytes_;       ///< mesh.ply's, until discovery has hashed them
 };
 
 }  // namespace

@@ -15,31 +15,13 @@
 
 #include "objscan/core/clock.h"
 #include "objscan/discovery/segmentation.h"
+#include "stopwatch.h"
 
 namespace objscan::discovery {
 
 namespace {
 
 using Clock = SteadyClock;
-
-/// CPU time of the process (all threads) or of the calling thread, milliseconds.
-double cpuMs(clockid_t clock) {
-  timespec t{};
-  clock_gettime(clock, &t);
-  return 1e3 * static_cast<double>(t.tv_sec) + 1e-6 * static_cast<double>(t.tv_nsec);
-}
-
-/// Wall and process CPU time of one stage.
-struct Stopwatch {
-  Clock::time_point wall = Clock::now();
-  double cpu = cpuMs(CLOCK_PROCESS_CPUTIME_ID);
-  void stop(double* wall_ms, double* cpu_ms) {
-    *wall_ms = millisecondsSince(wall);
-    *cpu_ms = cpuMs(CLOCK_PROCESS_CPUTIME_ID) - cpu;
-    wall = Clock::now();
-    cpu = cpuMs(CLOCK_PROCESS_CPUTIME_ID);
-  }
-};
 
 }  // namespace
 

@@ -1,7 +1,5 @@
 #include "objscan/discovery/scenes.h"
 
-#include <time.h>
-
 #include <algorithm>
 #include <cstdlib>
 #include <map>
@@ -16,6 +14,7 @@
 #include "objscan/core/progress.h"
 #include "objscan/discovery/catalog.h"
 #include "objscan/discovery/recurrence.h"
+#include "stopwatch.h"
 
 namespace objscan::discovery {
 
@@ -196,25 +195,17 @@ void addRecurrenceAndNormalise(SceneDiscovery& run, Catalog* catalog, const std:
   run.normaliser.sd[5] = own.sd[5];
 }
 
-double processCpuMs() {
-  timespec t{};
-  ::clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
-  return 1e3 * static_cast<double>(t.tv_sec) + 1e-6 * static_cast<double>(t.tv_nsec);
-}
-
 /// Scores and suppression within each scene (timed as its suppress stage), then every scene's
 /// hypotheses best first.
 void rankAll(SceneDiscovery& run, const ObjectnessModel& scorer, double max_iou) {
   for (std::size_t s = 0; s < run.scenes.size(); ++s) {
     DiscoveryTimings& t = run.scenes[s].candidates.timings;
-    const auto wall = SteadyClock::now();
-    const double cpu = processCpuMs();
+    Stopwatch watch;
     for (Hypothesis& h : rankCandidates(run.scenes[s].candidates, scorer, max_iou)) {
       run.ranked.push_back({s, std::move(h)});
       ++run.scenes[s].hypotheses;
     }
-    t.suppress_ms = millisecondsSince(wall);
-    t.suppress_cpu_ms = processCpuMs() - cpu;
+    watch.stop(&t.suppress_ms, &t.suppress_cpu_ms);
   }
   std::stable_sort(run.ranked.begin(), run.ranked.end(),
                    [](const RankedHypothesis& a, const RankedHypothesis& b) {

@@ -16,14 +16,18 @@ namespace objscan::report::json_node {
 
 using Json = nlohmann::json;
 
-/// The file parsed; InputError naming it when it is missing, unreadable or not JSON.
-inline Json parseFile(const std::filesystem::path& path) {
-  const std::string text = readWholeFile(path);
+/// The text of `path` parsed; InputError naming it when it is not JSON.
+inline Json parseText(const std::string& text, const std::filesystem::path& path) {
   try {
     return Json::parse(text);
   } catch (const Json::exception& e) {  // syntax errors, truncation, numbers out of range
     throw InputError(path, std::string("not valid JSON: ") + e.what());
   }
+}
+
+/// The file parsed; InputError naming it when it is missing, unreadable or not JSON.
+inline Json parseFile(const std::filesystem::path& path) {
+  return parseText(readWholeFile(path), path);
 }
 
 inline const char* typeName(const Json& j) {

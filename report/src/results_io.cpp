@@ -99,11 +99,15 @@ std::string rankFileName(std::size_t rank, const char* extension) {
 
 // ---- hypotheses.json ---------------------------------------------------------------------------
 
+std::optional<CatalogUse> catalogUseOf(const discovery::SceneDiscovery& run) {
+  if (!run.catalog) return std::nullopt;
+  return CatalogUse{run.catalog->string(), run.catalog_scenes, run.catalog_segments};
+}
+
 Hypotheses hypothesesFrom(const discovery::SceneDiscovery& run, const std::string& model) {
   Hypotheses out;
   out.scoring = Scoring{discovery::toString(run.scorer), model, run.normalised_over};
-  if (run.catalog)
-    out.catalog = CatalogUse{run.catalog->string(), run.catalog_scenes, run.catalog_segments};
+  out.catalog = catalogUseOf(run);
   for (const discovery::DiscoveredScene& scene : run.scenes) {
     SceneRecord r;
     r.mesh = scene.name;
@@ -604,12 +608,7 @@ void writeSettings(const fs::path& file, const Settings& s) {
 Settings readSettings(const fs::path& file) { return parseSettings(readWholeFile(file), file); }
 
 Settings parseSettings(const std::string& text, const fs::path& file) {
-  Json doc;
-  try {
-    doc = Json::parse(text);
-  } catch (const Json::exception& e) {
-    throw InputError(file, std::string("not valid JSON: ") + e.what());
-  }
+  const Json doc = json_node::parseText(text, file);
   const Node top(file, doc, "");
   Settings s;
   s.objscan_version = top.string("objscan_version").value_or("");

@@ -3,6 +3,7 @@
 #include <cstddef>
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -31,6 +32,10 @@ inline constexpr const char* kReportFile = "report.html";
 std::string rankFileName(std::size_t rank, const char* extension);
 
 // ---- hypotheses.json and objects/ --------------------------------------------------------------
+
+/// The catalog a discovery run used, as hypotheses.json and settings.json record it; nothing
+/// without one.
+std::optional<CatalogUse> catalogUseOf(const discovery::SceneDiscovery& run);
 
 /// hypotheses.json's record of a discovery run; `model` is the model file scored with (empty for
 /// the average).
