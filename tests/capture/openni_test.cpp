@@ -368,7 +368,7 @@ TEST_F(OpenNI, UnpluggedSensorEndsTheLiveStreamAndLeavesAReplayableRecording) {
   const fs::path oni = out_.path() / "unplugged_live.oni";
   LiveRecording record;
   record.out = oni;
-  auto live = openSensor("virtual:" + folder().string() + "?fps=60&unplug_after=7", {}, {}, record);
+  auto live = openSensor("virtual:" + folder().string() + "?fps=20&unplug_after=7", {}, {}, record);
   const std::vector<RgbdFrame> returned = readAll(*live);
   EXPECT_EQ(returned.size(), 7u);
   const RecordSummary summary = *finishRecording(*live, "finished by the test");
