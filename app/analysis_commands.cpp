@@ -21,7 +21,8 @@ Command addDiscoverCommand(CLI::App& app) {
       "discover", "Segment scene meshes, measure and rank object hypotheses into DIR");
   discover
       ->add_option("meshes", discover_options.meshes,
-                   "Scene meshes (.ply, e.g. objscan fuse's mesh.ply), or folders holding one")
+                   "Scenes: meshes (.ply, e.g. objscan fuse's mesh.ply), folders holding one, or a "
+                   "camera's point clouds (.pcd)")
       ->required();
   discover->add_option("--out", discover_options.out, "Folder for hypotheses.json and objects/")
       ->required();
@@ -38,6 +39,7 @@ Command addDiscoverCommand(CLI::App& app) {
                        "normalised measures)");
   discover->add_flag("--timings", discover_options.timings, "Print each stage's time");
   addDiscoveryOptions(discover, discover_options.config);
+  addSceneReading(discover, discover_options.reading);
   return {discover, [options, discover] {
             options->settings = commandSettings(*discover);
             return runDiscover(*options);
@@ -52,6 +54,7 @@ Command addEvalCommand(CLI::App& app) {
   addLabelledScenes(eval, eval_options.scenes, eval_options.catalog);
   eval->add_option("--out", eval_options.out, "Folder for the CSV files and plots")->required();
   addDiscoveryOptions(eval, eval_options.config);
+  addSceneReading(eval, eval_options.reading);
   eval->add_option("--splits", eval_options.splits, "Random train/test halvings")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
@@ -60,6 +63,12 @@ Command addEvalCommand(CLI::App& app) {
   eval->add_flag_callback(
       "--no-ablation", [&eval_options] { eval_options.ablation = false; },
       "Skip the RBF SVM without each measure");
+  eval->add_flag_callback(
+      "--no-classifiers", [&eval_options] { eval_options.classifiers = false; },
+      "Skip the classifier protocol: object recall and per-scene figures only");
+  eval->add_option("--category", eval_options.categories,
+                   "NAME=REGEX: scenes whose file name matches REGEX form category NAME in the "
+                   "per-scene figures (the first that matches; repeatable)");
 
   return {eval, [options, eval] {
             options->settings = commandSettings(*eval);
@@ -84,6 +93,7 @@ Command addTrainCommand(CLI::App& app) {
       ->check(CLI::Range(0.01, 1.0))
       ->capture_default_str();
   addDiscoveryOptions(train, train_options.config);
+  addSceneReading(train, train_options.reading);
   train->add_option("--seed", train_options.seed, "Seed of the cross-validation folds")
       ->capture_default_str();
 

@@ -76,7 +76,9 @@ int runDiscover(const DiscoverCommandOptions& options) {
   {
     ProgressBar progress("reading scenes", options.meshes.size());
     for (const std::filesystem::path& mesh : options.meshes) {
-      scenes.push_back(discovery::loadScene(mesh, false, library.catalog.has_value()));
+      discovery::SceneReading reading = options.reading;
+      reading.hash = library.catalog.has_value();
+      scenes.push_back(discovery::loadScene(mesh, reading));
       progress.advance();
     }
   }

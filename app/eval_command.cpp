@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <iomanip>
 #include <map>
+#include <regex>
 #include <sstream>
 
 #include <nlohmann/json.hpp>
@@ -29,13 +30,17 @@ using discovery::SceneDiscovery;
 /// The labelled scenes through discovery's one entry point (no model: the average score).
 SceneDiscovery labelledScenes(const std::vector<fs::path>& arguments,
                               const discovery::DiscoveryConfig& config,
-                              const std::optional<fs::path>& catalog) {
+                              const std::optional<fs::path>& catalog,
+                              const discovery::SceneReading& read) {
   config.validate();
   std::vector<discovery::SceneInput> scenes;
+  discovery::SceneReading reading = read;
+  reading.labelled = true;
+  reading.hash = catalog.has_value();
   {
     ProgressBar progress("reading scenes", arguments.size());
     for (const fs::path& a : arguments) {
-      scenes.push_back(discovery::loadScene(a, true, catalog.has_value()));
+      scenes.push_back(discovery::loadScene(a, reading));
       progress.advance();
     }
   }
@@ -157,6 +162,99 @@ void writeRecall(const fs::path& out, const Recall& recall, nlohmann::json& summ
       100 * share(recall.hypotheses_07, recall.objects));
 }
 
+struct Category {
+  std::string name;
+  std::regex pattern;
+};
+
+std::vector<Category> parseCategories(const std::vector<std::string>& specs) {
+  std::vector<Category> out;
+  for (const std::string& spec : specs) {
+    const std::size_t eq = spec.find('=');
+    if (eq == 0 || eq == std::string::npos || eq + 1 == spec.size()) {
+      throw std::invalid_argument("--category " + spec + ": expected NAME=REGEX");
+    }
+    try {
+      out.push_back({spec.substr(0, eq), std::regex(spec.substr(eq + 1))});
+    } catch (const std::regex_error& e) {
+      throw std::invalid_argument("--category " + spec + ": not a regular expression (" +
+                                  e.what() + ")");
+    }
+  }
+  return out;
+}
+
+std::string categoryOf(const std::vector<Category>& categories, const std::string& scene) {
+  const std::string file = fs::path(scene).filename().string();
+  for (const Category& c : categories) {
+    if (std::regex_match(file, c.pattern)) return c.name;
+  }
+  return "other";
+}
+
+/// Means over the scenes with objects.
+struct SceneMeans {
+  std::size_t scenes = 0, objects = 0;
+  double recall_05 = 0, recall_07 = 0, ap_05 = 0, ap_07 = 0;
+  void add(const discovery::SceneRecall& r) {
+    if (r.objects == 0) return;
+    ++scenes;
+    objects += r.objects;
+    recall_05 += r.recall_05;
+    recall_07 += r.recall_07;
+    ap_05 += r.ap_05;
+    ap_07 += r.ap_07;
+  }
+  nlohmann::json json() const {
+    const double n = scenes ? static_cast<double>(scenes) : 1.0;
+    return {{"scenes", scenes},          {"objects", objects},       {"recall_0.5", recall_05 / n},
+            {"recall_0.7", recall_07 / n}, {"ap_0.5", ap_05 / n}, {"ap_0.7", ap_07 / n}};
+  }
+  void print(const std::string& label) const {
+    const double n = scenes ? static_cast<double>(scenes) : 1.0;
+    std::printf("  %-22s %3zu scenes %4zu objects  recall@0.5 %.3f  @0.7 %.3f  AP@0.5 %.3f  @0.7 %.3f\n",
+                label.c_str(), scenes, objects, recall_05 / n, recall_07 / n, ap_05 / n, ap_07 / n);
+  }
+};
+
+/// scenes.csv and the per-scene means (all scenes, each category; object parts and, where the
+/// truth has them, whole objects) into `summary` and on stdout.
+void writeSceneFigures(const fs::path& out, const SceneDiscovery& set,
+                       const std::vector<Category>& categories, nlohmann::json& summary) {
+  std::ostringstream csv;
+  csv << std::setprecision(6)
+      << "scene,category,truth,objects,hypotheses,recall_0.5,recall_0.7,ap_0.5,ap_0.7\n";
+  std::printf("\nper-scene means (discover's ranking):\n");
+  bool any_whole = false;
+  for (const discovery::DiscoveredScene& s : set.scenes) any_whole |= s.whole_objects.has_value();
+  for (const bool whole : {false, true}) {
+    if (whole && !any_whole) break;
+    const char* truth = whole ? "whole_objects" : "objects";
+    SceneMeans all;
+    std::map<std::string, SceneMeans> by_category;
+    for (const discovery::SceneRecall& r : discovery::sceneRecall(set, whole)) {
+      const discovery::DiscoveredScene& scene = set.scenes[r.scene];
+      const std::string category = categoryOf(categories, scene.name);
+      all.add(r);
+      by_category[category].add(r);
+      csv << scene.name << ',' << category << ',' << truth << ',' << r.objects << ','
+          << scene.hypotheses << ',' << r.recall_05 << ',' << r.recall_07 << ',' << r.ap_05 << ','
+          << r.ap_07 << '\n';
+    }
+    const std::string prefix = whole ? "whole objects" : (any_whole ? "object parts" : "objects");
+    all.print(prefix);
+    nlohmann::json j = all.json();
+    if (by_category.size() > 1 || !categories.empty()) {
+      for (const auto& [name, means] : by_category) {
+        means.print("  " + name);
+        j["categories"][name] = means.json();
+      }
+    }
+    summary[std::string("per_scene_") + truth] = j;
+  }
+  writeFileAtomically(out / "scenes.csv", csv.str());
+}
+
 }  // namespace
 
 int runEval(const EvalCommandOptions& options) {
@@ -165,8 +263,9 @@ int runEval(const EvalCommandOptions& options) {
   eval.seed = options.seed;
   eval.ablation = options.ablation;
   eval.validate();
+  const std::vector<Category> categories = parseCategories(options.categories);
   prepareOutputFolder(options.out);
-  const SceneDiscovery set = labelledScenes(options.scenes, options.config, options.catalog);
+  const SceneDiscovery set = labelledScenes(options.scenes, options.config, options.catalog, options.reading);
   const LabelledSegments segs = discovery::labelledSegments(set, options.config.max_iou);
   writeFileAtomically(options.out / "segments.csv", segmentsCsv(set, segs));
 
@@ -178,22 +277,25 @@ int runEval(const EvalCommandOptions& options) {
   summary["segmentation"] = options.config.supports.enabled ? "support surfaces cut" : "paper";
   std::printf("scenes        %zu, %zu segments after suppression\n", set.scenes.size(),
               segs.measures.size());
-  for (double iou : kLabelIous) evaluateAtIou(options, eval, segs, iou, summary);
+  if (options.classifiers) {
+    for (double iou : kLabelIous) evaluateAtIou(options, eval, segs, iou, summary);
+  }
   writeRecall(options.out, recallTable(set, segs), summary);
+  writeSceneFigures(options.out, set, categories, summary);
   writeFileAtomically(options.out / "summary.json", summary.dump(1) + "\n");
   report::Settings settings = options.settings;
   settings.catalog = report::catalogUseOf(set);
   report::writeSettings(options.out / report::kSettingsFile, settings);
   std::printf(
       "written       %s (ap.csv, pr_curves.csv/png, *_iou5/8, segments.csv, recall.csv, "
-      "summary.json, settings.json)\n",
+      "scenes.csv, summary.json, settings.json)\n",
       options.out.c_str());
   return kExitSuccess;
 }
 
 int runTrain(const TrainCommandOptions& options) {
   const discovery::ScoreKind kind = discovery::scoreKindFromString(options.kind);
-  const SceneDiscovery set = labelledScenes(options.scenes, options.config, options.catalog);
+  const SceneDiscovery set = labelledScenes(options.scenes, options.config, options.catalog, options.reading);
   const LabelledSegments segs = discovery::labelledSegments(set, options.config.max_iou);
   const std::vector<int> labels = segs.labels(options.min_iou);
   std::vector<discovery::MeasureRow> rows;

@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "objscan/discovery/discover.h"
+#include "objscan/discovery/scenes.h"
 #include "objscan/report/results.h"
 
 namespace objscan::app {
@@ -15,16 +15,22 @@ struct EvalCommandOptions {
   std::vector<std::filesystem::path> scenes;  ///< labelled scenes (see readScenes)
   std::filesystem::path out;
   discovery::DiscoveryConfig config;
+  discovery::SceneReading reading;  ///< how PCD scenes are read (--intrinsics)
   std::optional<std::filesystem::path> catalog;  ///< nothing: no catalog
   int splits = 20;
   std::uint64_t seed = 1;
   bool ablation = true;
+  /// Skip the classifier protocol (AP over random halvings): recall and per-scene figures only.
+  bool classifiers = true;
+  /// Scene categories for the per-category figures: NAME=REGEX, the regular expression matched
+  /// against a scene's file name; the first that matches. Unmatched scenes: "other".
+  std::vector<std::string> categories;
   report::Settings settings;  ///< the command line's, for OUT/settings.json
 };
 
 /// `objscan eval`: the paper's protocol on labelled scenes; writes ap.csv, pr_curves.csv,
-/// pr_curves.png, segments.csv, recall.csv and summary.json into OUT and prints the AP table and
-/// object recall. Returns the exit code.
+/// pr_curves.png, segments.csv, recall.csv, scenes.csv and summary.json into OUT and prints the
+/// AP table, object recall and the per-scene means (by category too). Returns the exit code.
 int runEval(const EvalCommandOptions& options);
 
 struct TrainCommandOptions {
@@ -32,6 +38,7 @@ struct TrainCommandOptions {
   std::filesystem::path model;  ///< the file to write
   std::string kind = "rbf_svm";
   discovery::DiscoveryConfig config;
+  discovery::SceneReading reading;  ///< how PCD scenes are read (--intrinsics)
   std::optional<std::filesystem::path> catalog;
   double min_iou = 0.7;  ///< a segment is an object at this IoU with a ground-truth object
   std::uint64_t seed = 1;

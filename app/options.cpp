@@ -7,6 +7,7 @@
 #include <string>
 
 #include "objscan/core/error.h"
+#include "objscan/core/intrinsics.h"
 #include "objscan/core/log.h"
 #include "objscan/render/snapshots.h"
 #include "objscan/report/results_io.h"
@@ -164,9 +165,18 @@ void addLabelledScenes(CLI::App* sub, std::vector<std::filesystem::path>& scenes
                        std::optional<std::filesystem::path>& catalog) {
   sub->add_option("scenes", scenes,
                   "Labelled scenes: folders with scene_gt.ply and fused/mesh.ply "
-                  "(scripts/make_discovery_scenes), or meshes whose vertices carry object_id")
+                  "(scripts/make_discovery_scenes), meshes whose vertices carry object_id, or "
+                  "PCD clouds with a label field")
       ->required();
   sub->add_option("--catalog", catalog, "Catalog to reuse and extend (default: none)");
+}
+
+void addSceneReading(CLI::App* sub, discovery::SceneReading& reading) {
+  sub->add_option_function<std::string>(
+      "--intrinsics",
+      [&reading](const std::string& file) { reading.intrinsics = readIntrinsicsJson(file); },
+      "intrinsics.json of the camera of unorganized PCD scenes (default: the pinhole that fits "
+      "their points)");
 }
 
 void addPictureOptions(CLI::App* sub, pipeline::PictureOptions& o) {

@@ -7,6 +7,7 @@
 #include <CLI/CLI.hpp>
 
 #include "objscan/discovery/discover.h"
+#include "objscan/discovery/scenes.h"
 #include "objscan/pipeline/fuse.h"
 #include "objscan/pipeline/pictures.h"
 #include "objscan/report/results.h"
@@ -25,6 +26,9 @@ void addFusionOptions(CLI::App* sub, pipeline::FuseOptions& o);
 void addDiscoveryOptions(CLI::App* sub, discovery::DiscoveryConfig& config);
 
 /// eval's and train's: the labelled scenes and the catalog.
+/// --intrinsics: the camera of unorganized PCD scenes.
+void addSceneReading(CLI::App* sub, discovery::SceneReading& reading);
+
 void addLabelledScenes(CLI::App* sub, std::vector<std::filesystem::path>& scenes,
                        std::optional<std::filesystem::path>& catalog);
 

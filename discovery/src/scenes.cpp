@@ -1,6 +1,7 @@
 #include "objscan/discovery/scenes.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cstdlib>
 #include <map>
 #include <set>
@@ -13,6 +14,7 @@
 #include "objscan/core/ply_io.h"
 #include "objscan/core/progress.h"
 #include "objscan/discovery/catalog.h"
+#include "objscan/discovery/evaluation.h"
 #include "objscan/discovery/recurrence.h"
 #include "stopwatch.h"
 
@@ -215,7 +217,84 @@ void rankAll(SceneDiscovery& run, const ObjectnessModel& scorer, double max_iou)
 
 }  // namespace
 
-SceneInput loadScene(const fs::path& argument, bool labelled, bool hash) {
+namespace {
+
+bool isPcd(const fs::path& path) {
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  return ext == ".pcd";
+}
+
+/// Object ids of a mesh's vertices with each object's parts (10 k + p) merged into object k.
+std::vector<std::int32_t> wholeObjectIds(std::vector<std::int32_t> parts) {
+  for (std::int32_t& id : parts) id = id >= 10 ? id / 10 : 0;
+  return parts;
+}
+
+/// The organized cloud of a PCD file: as stored, or an unorganized one put back on its camera's
+/// pixel grid.
+OrganizedCloud organizedCloudOf(const fs::path& path, const std::optional<Intrinsics>& camera) {
+  OrganizedCloud cloud = readPcd(path);
+  if (cloud.organized()) return cloud;
+  std::optional<Intrinsics> k = camera ? camera : fitPinhole(cloud);
+  if (!k) {
+    throw InputError(path,
+                     "the cloud is not organized (HEIGHT 1) and its points do not fit a camera's "
+                     "pixel grid: give the camera's intrinsics with --intrinsics");
+  }
+  try {
+    return placeOnPixelGrid(cloud, *k);
+  } catch (const std::invalid_argument& e) {
+    throw InputError(path, std::string("the intrinsics to put it on its pixel grid: ") + e.what());
+  }
+}
+
+}  // namespace
+
+SceneInput sceneFromCloud(std::string name, const OrganizedCloud& cloud, bool labelled,
+                          const OrganizedMeshConfig& meshing) {
+  if (labelled && cloud.labels.empty()) {
+    throw InputError(name, "no label field: a labelled point cloud needs one per point");
+  }
+  TriangleMesh mesh;
+  try {
+    mesh = meshOrganized(cloud, meshing);
+  } catch (const std::invalid_argument& e) {
+    throw InputError(name, e.what());
+  }
+  if (mesh.empty()) throw InputError(name, "the cloud has no valid point (all NaN or behind the camera)");
+  if (mesh.triangles.empty()) {
+    throw InputError(name, "no two neighbouring pixels of the cloud join into a surface");
+  }
+  SceneInput scene;
+  scene.name = std::move(name);
+  if (labelled) {
+    try {
+      scene.whole_objects.emplace(wholeObjectIds(mesh.labels));
+      scene.truth.emplace(mesh.labels);
+    } catch (const std::invalid_argument& e) {
+      throw InputError(scene.name, e.what());
+    }
+  }
+  // The labels are ground truth, not something discovery reads.
+  mesh.labels.clear();
+  scene.mesh = std::move(mesh);
+  try {
+    prepareSceneMesh(scene.mesh);
+  } catch (const std::invalid_argument& e) {
+    throw InputError(scene.name, e.what());
+  }
+  return scene;
+}
+
+SceneInput loadScene(const fs::path& argument, const SceneReading& reading) {
+  if (isPcd(argument)) {
+    SceneInput scene = sceneFromCloud(argument.string(),
+                                      organizedCloudOf(argument, reading.intrinsics),
+                                      reading.labelled, reading.meshing);
+    if (reading.hash) scene.content_hash = contentHash(argument);
+    return scene;
+  }
   SceneInput scene;
   const fs::path mesh_path = meshOf(argument);
   scene.name = mesh_path.string();
@@ -225,8 +304,8 @@ SceneInput loadScene(const fs::path& argument, bool labelled, bool hash) {
   } catch (const std::invalid_argument& e) {
     throw InputError(mesh_path, e.what());
   }
-  if (hash) scene.content_hash = contentHash(mesh_path);
-  if (labelled) {
+  if (reading.hash) scene.content_hash = contentHash(mesh_path);
+  if (reading.labelled) {
     try {
       scene.truth.emplace(groundTruthLabels(argument, scene.mesh));
     } catch (const std::invalid_argument& e) {
@@ -278,6 +357,7 @@ SceneDiscovery discoverScenes(std::vector<SceneInput> inputs,
     scene.name = std::move(input.name);
     scene.mesh = std::move(input.mesh);
     scene.truth = std::move(input.truth);
+    scene.whole_objects = std::move(input.whole_objects);
     findOrRecall(scene, input.content_hash, options, settings, catalog ? &*catalog : nullptr,
                  static_cast<std::int64_t>(run.scenes.size()));
     run.scenes.push_back(std::move(scene));
@@ -344,6 +424,33 @@ std::vector<ObjectRecall> objectRecall(const SceneDiscovery& run, const Labelled
     for (const auto& [id, iou] : best_candidate) {
       out.push_back({s, id, truth.objectSize(id), iou, best_kept[id]});
     }
+  }
+  return out;
+}
+
+std::vector<SceneRecall> sceneRecall(const SceneDiscovery& run, bool whole_objects) {
+  std::vector<std::vector<std::vector<std::int32_t>>> ranked(run.scenes.size());
+  for (const RankedHypothesis& h : run.ranked) ranked[h.scene].push_back(h.hypothesis.segment.vertices);
+  std::vector<SceneRecall> out;
+  for (std::size_t s = 0; s < run.scenes.size(); ++s) {
+    const DiscoveredScene& scene = run.scenes[s];
+    if (!scene.truth) {
+      throw std::invalid_argument(scene.name + ": a labelled run needs every scene's truth");
+    }
+    const GroundTruthObjects& truth =
+        whole_objects && scene.whole_objects ? *scene.whole_objects : *scene.truth;
+    const RankingEvaluation at05 = evaluateRanking(truth, ranked[s], 0.5);
+    const RankingEvaluation at07 = evaluateRanking(truth, ranked[s], 0.7);
+    SceneRecall r;
+    r.scene = s;
+    r.objects = at05.objects;
+    if (r.objects > 0) {
+      r.recall_05 = static_cast<double>(at05.found) / static_cast<double>(r.objects);
+      r.recall_07 = static_cast<double>(at07.found) / static_cast<double>(r.objects);
+    }
+    r.ap_05 = at05.ap;
+    r.ap_07 = at07.ap;
+    out.push_back(r);
   }
   return out;
 }

@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "objscan/core/intrinsics.h"
+#include "objscan/core/organized_cloud.h"
 #include "objscan/core/triangle_mesh.h"
 #include "objscan/discovery/discover.h"
 #include "objscan/discovery/labels.h"
@@ -30,16 +32,37 @@ struct SceneInput {
   std::string content_hash;
   /// The ground-truth objects, for labelled runs (eval, train).
   std::optional<GroundTruthObjects> truth;
+  /// Where the truth has objects made of parts (a PCD's labels 10 k + p): each object whole,
+  /// reported beside the parts.
+  std::optional<GroundTruthObjects> whole_objects;
 };
 
-/// Reads a scene as the command line names it: a mesh file (.ply), or a folder holding
-/// fused/mesh.ply or mesh.ply. With `labelled`, also its ground truth: scene_gt.ply in the folder
-/// (objscan synth's; its object ids moved onto the mesh by the nearest surface within 1 cm), or
-/// the mesh's own object_id. With `hash`, the file's content hash for the catalog (a run without
-/// one need not read the file twice). Throws InputError naming the file for a mesh that cannot be
-/// used (missing, empty, no faces, NaN, ...) or a labelled scene without labels.
-SceneInput loadScene(const std::filesystem::path& argument, bool labelled = false,
-                     bool hash = true);
+/// How loadScene reads a scene.
+struct SceneReading {
+  /// Also the ground truth: scene_gt.ply in a scene folder, the mesh's own object_id, or a PCD's
+  /// label field (each object part an object; SceneInput::whole_objects merges the parts).
+  bool labelled = false;
+  /// The file's content hash for the catalog (a run without one need not read the file twice).
+  bool hash = true;
+  /// The camera of an unorganized PCD (its points are put back on this pixel grid); nothing: the
+  /// pinhole that fits its points (fitPinhole), and a clear refusal when none does.
+  std::optional<Intrinsics> intrinsics;
+  /// How a PCD's pixels are joined into a mesh.
+  OrganizedMeshConfig meshing;
+};
+
+/// Reads a scene as the command line names it: a mesh file (.ply), a folder holding
+/// fused/mesh.ply or mesh.ply, or a camera's point cloud (.pcd, organized or put back on its
+/// pixel grid), meshed by joining neighbouring pixels (meshOrganized). Throws InputError naming
+/// the file for a scene that cannot be used (missing, truncated, corrupt, empty, no faces, NaN,
+/// an unorganized cloud with no camera that fits it, ...) or a labelled scene without labels.
+SceneInput loadScene(const std::filesystem::path& argument, const SceneReading& reading = {});
+
+/// A single view as a scene: the organized cloud meshed (meshOrganized), its labels (when it has
+/// them) as the ground truth of `labelled`, named `name`. Throws InputError naming `name` when it
+/// has no surface to discover objects on.
+SceneInput sceneFromCloud(std::string name, const OrganizedCloud& cloud, bool labelled,
+                          const OrganizedMeshConfig& meshing = {});
 
 /// A scene input made from a mesh in memory (normals computed if missing), checked as loadScene
 /// checks a file; `content_hash` as contentHash gives it for the bytes of the mesh's file.
@@ -75,6 +98,7 @@ struct DiscoveredScene {
   bool from_catalog = false;   ///< candidates and measures read from the catalog, not computed
   std::int64_t scene_id = 0;   ///< in the catalog, or the scene's index without one
   std::optional<GroundTruthObjects> truth;  ///< labelled runs only
+  std::optional<GroundTruthObjects> whole_objects;  ///< SceneInput::whole_objects
   std::size_t hypotheses = 0;               ///< how many of SceneDiscovery::ranked are this scene's
 };
 
@@ -134,6 +158,18 @@ struct ObjectRecall {
 /// Object recall: every ground-truth object of every scene, by scene and id.
 std::vector<ObjectRecall> objectRecall(const SceneDiscovery& discovery,
                                        const LabelledSegments& kept);
+
+/// How well one scene's ranked hypotheses (SceneDiscovery::ranked, as discover hands them out)
+/// find its ground-truth objects: evaluateRanking at IoU 0.5 and 0.7.
+struct SceneRecall {
+  std::size_t scene = 0;    ///< index into SceneDiscovery::scenes
+  std::size_t objects = 0;  ///< ground-truth objects with at least one vertex
+  double recall_05 = 0.0, recall_07 = 0.0;  ///< objects found / objects
+  double ap_05 = 0.0, ap_07 = 0.0;          ///< averagePrecisionOfRanking
+};
+/// Every labelled scene's figures; with `whole_objects`, against DiscoveredScene::whole_objects
+/// where a scene has them (its truth elsewhere).
+std::vector<SceneRecall> sceneRecall(const SceneDiscovery& discovery, bool whole_objects = false);
 
 /// One scene on its own, through discoverScenes (no catalog, the average score): its hypotheses
 /// best first, empty when it has no object candidates. With `timings`, where the scene's time
