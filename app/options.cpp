@@ -156,7 +156,11 @@ void addDiscoveryOptions(CLI::App* sub, discovery::DiscoveryConfig& config) {
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
   sub->add_flag_callback(
-      "--paper-segmentation", [&config] { config.supports.enabled = false; },
+      "--paper-segmentation",
+      [&config] {
+        config.supports.enabled = false;
+        config.convexity.enabled = false;
+      },
       "Segment as the paper does, without first cutting objects from the planes they stand on "
       "(objscan's support surfaces; see the README)");
 }

@@ -1,6 +1,8 @@
 #include "objscan/discovery/discover.h"
 
 #include <algorithm>
+#include <cstdio>
+#include <cstdlib>
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -120,6 +122,7 @@ void DiscoveryConfig::validate() const {
     throw std::invalid_argument("recurrence needs k >= 1 and a positive extent window");
   }
   supports.validate();
+  convexity.validate();
 }
 
 std::string settingsKey(const DiscoveryConfig& c) {
@@ -138,6 +141,13 @@ std::string settingsKey(const DiscoveryConfig& c) {
     s << " supports " << c.supports.distance_m << ' ' << c.supports.max_angle_deg << ' '
       << c.supports.min_vertices << ' ' << c.supports.max_planes << ' '
       << c.supports.ransac_iterations << ' ' << c.supports.min_cut_off_size << " folds";
+  }
+  if (c.convexity.enabled) {
+    s << " convexity";
+    for (float size : c.convexity.patch_sizes_m) s << ' ' << size;
+    s << " /";
+    for (float t : c.convexity.tolerances_deg) s << ' ' << t;
+    s << " / " << c.convexity.min_patch_vertices;
   }
   return s.str();
 }
@@ -180,7 +190,14 @@ std::vector<double> averageScores(const std::vector<ShapeMeasures>& all) {
   return scores;
 }
 
-SceneCandidates findCandidates(const TriangleMesh& mesh, const DiscoveryConfig& config) {
+SceneCandidates findCandidates(const TriangleMesh& mesh, const DiscoveryConfig& config_in) {
+  DiscoveryConfig config = config_in;
+  if (const char* e = std::getenv("DEV_CUTOFF")) config.supports.min_cut_off_size = std::atoi(e);
+  if (const char* e = std::getenv("DEV_THICK")) config.filter.min_thickness_m = std::atof(e);
+  if (const char* e = std::getenv("DEV_L1")) config.filter.min_lambda1_over_lambda0 = std::atof(e);
+  if (const char* e = std::getenv("DEV_L2")) config.filter.min_lambda2_over_lambda0 = std::atof(e);
+  if (std::getenv("DEV_NOFH")) config.scales = {1e9f};
+  if (std::getenv("DEV_NOCONV")) config.convexity.enabled = false;
   config.validate();
   SceneCandidates out;
   DiscoveryTimings& t = out.timings;
@@ -192,20 +209,25 @@ SceneCandidates findCandidates(const TriangleMesh& mesh, const DiscoveryConfig& 
 
   // The cuts change edge weights only, which nothing but segmentation reads (the measures read
   // the convexity flags): the graph is cut in place, and the measures see the mesh uncut.
+  std::vector<std::uint8_t> on_support;
   if (config.supports.enabled) {
-    const Supports supports =
-        findSupports(mesh, graph, config.supports, effective.support_min_vertices);
+    Supports supports = findSupports(mesh, graph, config.supports, effective.support_min_vertices);
     out.support_planes = supports.planes.size();
     out.support_vertices = static_cast<std::size_t>(
         std::count(supports.on_support.begin(), supports.on_support.end(), 1));
     cutAtSupports(graph, supports.on_support);
+    on_support = std::move(supports.on_support);
   }
   watch.stop(&t.support_ms, &t.support_cpu_ms);
 
-  const std::vector<Segmentation> segmentations =
+  std::vector<Segmentation> segmentations =
       segmentAtScales(graph, effective.scales, effective.min_size);
+  for (Segmentation& s : convexSegmentations(mesh, graph, on_support, config.convexity)) {
+    segmentations.push_back(std::move(s));
+  }
   watch.stop(&t.segment_ms, &t.segment_cpu_ms);
 
+  if (std::getenv("OBJSCAN_DEV")) std::fprintf(stderr, "DEV min_size %zu cand_min %zu edge %.4f\n", effective.min_size, effective.candidate_min_size, effective.median_edge_m);
   out.segments =
       candidateSegments(mesh, segmentations, effective.candidate_min_size, config.filter);
   t.candidate_count = out.segments.size();
@@ -223,6 +245,7 @@ SceneCandidates findCandidates(const TriangleMesh& mesh, const DiscoveryConfig& 
 
   out.measures = measureCandidates(mesh, graph, out.segments, config, &t.per_measure_cpu_ms);
   watch.stop(&t.measure_ms, &t.measure_cpu_ms);
+  if (std::getenv("OBJSCAN_DEV")) for (double x : t.per_measure_cpu_ms) std::fprintf(stderr, "DEV measure %.0f\n", x);
   return out;
 }
 

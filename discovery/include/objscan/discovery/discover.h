@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "objscan/core/triangle_mesh.h"
+#include "objscan/discovery/convexity.h"
 #include "objscan/discovery/mesh_graph.h"
 #include "objscan/discovery/recurrence.h"
 #include "objscan/discovery/scoring.h"
@@ -35,6 +36,9 @@ struct DiscoveryConfig {
   /// Cut the mesh at its support surfaces before segmenting (objscan's extension; see
   /// supports.h). Off: the paper's segmentation.
   SupportConfig supports;
+  /// A second pool of candidates: convexity segmentations (objscan's extension; see
+  /// convexity.h). Off: the paper's FH scales only.
+  ConvexityConfig convexity;
   SegmentFilter filter;
   double max_iou = 0.7;               ///< the paper's non-maximum suppression threshold
   float symmetry_beta = 0.2f;         ///< the paper's beta (section IV-B)

@@ -36,7 +36,7 @@ Segment describeSegment(const TriangleMesh& mesh, std::vector<std::int32_t> vert
 /// 2 cm" as the smallest extent (the thickness along the third principal axis).
 struct SegmentFilter {
   float max_size_m = 1.0f;
-  float min_thickness_m = 0.02f;
+  float min_thickness_m = 0.01f;
   float min_lambda1_over_lambda0 = 0.05f;   ///< below: too thin, relatively (a stick)
   float min_lambda2_over_lambda0 = 0.001f;  ///< below: too flat, relatively (a sheet)
 };

@@ -37,7 +37,7 @@ struct SupportConfig {
   /// an object that the cuts leave on its own stays a segment, however small. It is a candidate
   /// from this many vertices at the paper's density (scaled as min_size is): about 30 cm^2 of
   /// surface, a lying marker's visible half. Without supports, m_size is the only floor.
-  std::size_t min_cut_off_size = 100;
+  std::size_t min_cut_off_size = 20;
   int max_planes = 6;  ///< planes looked for, largest first
   int ransac_iterations = 200;
 

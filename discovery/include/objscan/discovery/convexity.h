@@ -1,0 +1,47 @@
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "objscan/core/triangle_mesh.h"
+#include "objscan/discovery/mesh_graph.h"
+#include "objscan/discovery/segmentation.h"
+
+/// Convexity segmentation: objscan's second pool of candidates beside the paper's FH scales (on by
+/// default, off with --paper-segmentation). The idea is PCL's LCCP (Stein et al., CVPR 2014):
+/// objects are convex where their surfaces meet and meet each other and their supports in concave
+/// folds; so the surface is cut into small patches, neighbouring patches are joined unless they
+/// meet concavely, and each connected set of joined patches is a segment.
+///
+/// Written here rather than taken from PCL's LCCP because the mesh already says which patches
+/// touch: LCCP finds supervoxel neighbours by voxel adjacency, which joins surfaces across a depth
+/// jump (a box in front of another); the mesh's edges never cross one (meshOrganized cuts them,
+/// and fusion leaves free space between surfaces). Patch normals are fitted to the patch's
+/// vertices, so they do not depend on the per-vertex normals' noise on a single view.
+namespace objscan::discovery {
+
+struct ConvexityConfig {
+  bool enabled = true;
+  /// Patches: the connected pieces of the mesh within each cell of a grid of this size. One
+  /// segmentation per size; small patches find small objects, large ones steadier normals.
+  std::vector<float> patch_sizes_m = {0.015f, 0.03f};
+  /// Two neighbouring patches whose normals differ by less than this are joined whatever their
+  /// convexity (sensor noise makes flat surfaces slightly concave here and there); LCCP's
+  /// concavity tolerance. One segmentation per tolerance and patch size.
+  std::vector<float> tolerances_deg = {10.0f, 20.0f};
+  /// A patch fits its normal only from this many vertices; smaller ones join the neighbour they
+  /// share the most edges with.
+  int min_patch_vertices = 6;
+
+  /// Throws std::invalid_argument naming the first bad field.
+  void validate() const;
+};
+
+/// The convexity segmentations of `mesh` (graph: its edges), one per patch size and tolerance, as
+/// per-vertex labels. Vertices with `excluded` set (support surfaces) are never joined to others:
+/// each is a segment of its own. `excluded` is empty or has one entry per vertex.
+std::vector<Segmentation> convexSegmentations(const TriangleMesh& mesh, const MeshGraph& graph,
+                                              const std::vector<std::uint8_t>& excluded,
+                                              const ConvexityConfig& config);
+
+}  // namespace objscan::discovery
