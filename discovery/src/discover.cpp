@@ -1,8 +1,6 @@
 #include "objscan/discovery/discover.h"
 
 #include <algorithm>
-#include <cstdio>
-#include <cstdlib>
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -128,7 +126,7 @@ void DiscoveryConfig::validate() const {
 std::string settingsKey(const DiscoveryConfig& c) {
   std::ostringstream s;
   // Bump kMeasuresVersion whenever a measure's definition changes: the catalog then recomputes.
-  constexpr int kMeasuresVersion = 1;
+  constexpr int kMeasuresVersion = 2;
   s << std::setprecision(9) << "measures v" << kMeasuresVersion << " scales";
   for (float k : c.scales) s << ' ' << k;
   s << " min_size " << c.min_size << " density " << c.scale_with_density << ' '
@@ -190,14 +188,7 @@ std::vector<double> averageScores(const std::vector<ShapeMeasures>& all) {
   return scores;
 }
 
-SceneCandidates findCandidates(const TriangleMesh& mesh, const DiscoveryConfig& config_in) {
-  DiscoveryConfig config = config_in;
-  if (const char* e = std::getenv("DEV_CUTOFF")) config.supports.min_cut_off_size = std::atoi(e);
-  if (const char* e = std::getenv("DEV_THICK")) config.filter.min_thickness_m = std::atof(e);
-  if (const char* e = std::getenv("DEV_L1")) config.filter.min_lambda1_over_lambda0 = std::atof(e);
-  if (const char* e = std::getenv("DEV_L2")) config.filter.min_lambda2_over_lambda0 = std::atof(e);
-  if (std::getenv("DEV_NOFH")) config.scales = {1e9f};
-  if (std::getenv("DEV_NOCONV")) config.convexity.enabled = false;
+SceneCandidates findCandidates(const TriangleMesh& mesh, const DiscoveryConfig& config) {
   config.validate();
   SceneCandidates out;
   DiscoveryTimings& t = out.timings;
@@ -227,7 +218,6 @@ SceneCandidates findCandidates(const TriangleMesh& mesh, const DiscoveryConfig& 
   }
   watch.stop(&t.segment_ms, &t.segment_cpu_ms);
 
-  if (std::getenv("OBJSCAN_DEV")) std::fprintf(stderr, "DEV min_size %zu cand_min %zu edge %.4f\n", effective.min_size, effective.candidate_min_size, effective.median_edge_m);
   out.segments =
       candidateSegments(mesh, segmentations, effective.candidate_min_size, config.filter);
   t.candidate_count = out.segments.size();
@@ -245,7 +235,6 @@ SceneCandidates findCandidates(const TriangleMesh& mesh, const DiscoveryConfig& 
 
   out.measures = measureCandidates(mesh, graph, out.segments, config, &t.per_measure_cpu_ms);
   watch.stop(&t.measure_ms, &t.measure_cpu_ms);
-  if (std::getenv("OBJSCAN_DEV")) for (double x : t.per_measure_cpu_ms) std::fprintf(stderr, "DEV measure %.0f\n", x);
   return out;
 }
 

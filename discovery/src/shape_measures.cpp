@@ -318,6 +318,8 @@ double symmetry(const TriangleMesh& mesh, const Segment& segment, float beta) {
   if (!(lambda_sum > 0.0f)) return 0.0;
   const PointIndex index(pts.p);
   const std::size_t n = pts.p.size();
+  constexpr std::size_t kSymmetryQueries = 4000;
+  const std::size_t stride = (n + kSymmetryQueries - 1) / kSymmetryQueries;
   double total = 0.0;
   for (int d = 0; d < 3; ++d) {
     const float r = segment.extents[d];
@@ -326,14 +328,19 @@ double symmetry(const TriangleMesh& mesh, const Segment& segment, float beta) {
     // O(MC, C): each mirrored vertex against the original's nearest. It equals O(C, MC), since
     // |p - M q| = |M p - q| and n . M n' = M n . n' (M is a reflection), so the nearest mirrored
     // vertex to p is the mirror of the nearest original vertex to M p.
+    // The mean over at most kSymmetryQueries evenly spaced vertices: on a dense single view (a
+    // segment of 30,000 vertices) the mean of every vertex costs ten times as much and moves by
+    // less than its noise.
     double sum = 0.0;
-    for (std::size_t i = 0; i < n; ++i) {
+    std::size_t queries = 0;
+    for (std::size_t i = 0; i < n; i += stride) {
+      ++queries;
       const Eigen::Vector3f q = pts.p[i] - 2.0f * pts.p[i].dot(a) * a;
       const Eigen::Vector3f nq = pts.n[i] - 2.0f * pts.n[i].dot(a) * a;
       const std::uint32_t j = index.nearest(q);
       sum += (q - pts.p[j]).norm() / r + beta * (1.0f - nq.dot(pts.n[j]));
     }
-    const double both = 2.0 * sum / static_cast<double>(n);
+    const double both = 2.0 * sum / static_cast<double>(queries);
     total += static_cast<double>(segment.eigenvalues[d] / lambda_sum) * both;
   }
   return total;

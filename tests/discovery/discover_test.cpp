@@ -73,6 +73,7 @@ TEST(Discover, MatchesMeasuringEveryCandidateOnItsOwn) {
   DiscoveryConfig config;
   config.scales.push_back(config.scales[3]);  // a scale twice: its candidates all repeat
   config.scale_with_density = false;          // the reference below uses the scales as given
+  config.convexity.enabled = false;  // the reference below segments at the FH scales only
   const MeshGraph graph = buildMeshGraph(mesh);
   const VertexEdges by_vertex = vertexEdges(graph);
   // Segmentation sees the table cut from the mounds; the measures, the graph as it is.

@@ -61,7 +61,7 @@ TEST(Segment, EachHardFilterRejectsWhatItShould) {
   };
   EXPECT_EQ(why({0.10f, 0.08f, 0.08f}), "");  // a mug
   EXPECT_NE(why({1.20f, 0.30f, 0.30f}).find("larger than 1.00 m"), std::string::npos);
-  EXPECT_NE(why({0.30f, 0.30f, 0.01f}).find("thinner than 20 mm"), std::string::npos);
+  EXPECT_NE(why({0.30f, 0.30f, 0.005f}).find("thinner than 10 mm"), std::string::npos);
   // A 90 cm stick 5 cm across: lambda1 / lambda0 = (5 / 90)^2 = 0.003.
   EXPECT_NE(why({0.90f, 0.05f, 0.05f}).find("too thin"), std::string::npos);
   // A 90 cm square board 2.5 cm thick: lambda2 / lambda0 = (2.5 / 90)^2 = 0.0008.

@@ -36,6 +36,9 @@ Segment describeSegment(const TriangleMesh& mesh, std::vector<std::int32_t> vert
 /// 2 cm" as the smallest extent (the thickness along the third principal axis).
 struct SegmentFilter {
   float max_size_m = 1.0f;
+  /// The paper's 2 cm rejects what a single view shows of a box seen nearly face-on, and an
+  /// occluded object's thin sliver; 1 cm keeps them (chosen on half of mosd_learn, where 5 mm
+  /// let in so many slivers of the table's edge that AP fell from 0.95 to 0.64).
   float min_thickness_m = 0.01f;
   float min_lambda1_over_lambda0 = 0.05f;   ///< below: too thin, relatively (a stick)
   float min_lambda2_over_lambda0 = 0.001f;  ///< below: too flat, relatively (a sheet)

@@ -124,7 +124,8 @@ double hullDistance(const TriangleMesh& mesh, const Segment& segment);
 /// A distance: 0 for a shape that is its own mirror image about all three planes, larger the
 /// less symmetric. (The paper writes a sum over C1; the mean makes segments of different vertex
 /// counts comparable.) The reflection M is an isometry and its own inverse, so O(C, MC) =
-/// O(MC, C): the two sides are equal, and one is computed, with one kd-tree of C.
+/// O(MC, C): the two sides are equal, and one is computed, with one kd-tree of C. A segment of
+/// more than 4,000 vertices averages over 4,000 of them, evenly spaced in index.
 double symmetry(const TriangleMesh& mesh, const Segment& segment, float beta = 0.2f);
 
 /// Smoothness: at each vertex, the segment's other vertices within `radius` are projected onto

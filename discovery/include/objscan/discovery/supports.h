@@ -35,8 +35,10 @@ struct SupportConfig {
   std::size_t min_vertices = 3000;
   /// Segmentation merges a segment smaller than m_size into a neighbour, but never across a cut:
   /// an object that the cuts leave on its own stays a segment, however small. It is a candidate
-  /// from this many vertices at the paper's density (scaled as min_size is): about 30 cm^2 of
-  /// surface, a lying marker's visible half. Without supports, m_size is the only floor.
+  /// from this many vertices at the paper's density (scaled as min_size is): about 7 cm^2 of
+  /// surface, the visible part of a 3 cm object, or of an occluded object's small part on a
+  /// single view (chosen on half of mosd_learn: 100, the former value, missed parts of 130 to
+  /// 600 vertices there). Without supports, m_size is the only floor.
   std::size_t min_cut_off_size = 20;
   int max_planes = 6;  ///< planes looked for, largest first
   int ransac_iterations = 200;
