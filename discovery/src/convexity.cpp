@@ -47,7 +47,9 @@ struct Patches {
 
 std::int64_t cellKey(const Eigen::Vector3f& p, float size) {
   const auto c = [&](float x) {
-    return static_cast<std::int64_t>(std::floor(x / size)) & 0x1fffff;  // 21 bits each
+    // Clamped before the cast (a far-away vertex must not overflow it): 21 bits each.
+    const float cell = std::clamp(std::floor(x / size), -1.0e6f, 1.0e6f);
+    return static_cast<std::int64_t>(cell) & 0x1fffff;
   };
   return (c(p.x()) << 42) | (c(p.y()) << 21) | c(p.z());
 }
