@@ -177,8 +177,8 @@ std::vector<Category> parseCategories(const std::vector<std::string>& specs) {
     try {
       out.push_back({spec.substr(0, eq), std::regex(spec.substr(eq + 1))});
     } catch (const std::regex_error& e) {
-      throw std::invalid_argument("--category " + spec + ": not a regular expression (" +
-                                  e.what() + ")");
+      throw std::invalid_argument("--category " + spec + ": not a regular expression (" + e.what() +
+                                  ")");
     }
   }
   return out;
@@ -207,13 +207,18 @@ struct SceneMeans {
   }
   nlohmann::json json() const {
     const double n = scenes ? static_cast<double>(scenes) : 1.0;
-    return {{"scenes", scenes},          {"objects", objects},       {"recall_0.5", recall_05 / n},
-            {"recall_0.7", recall_07 / n}, {"ap_0.5", ap_05 / n}, {"ap_0.7", ap_07 / n}};
+    return {{"scenes", scenes},
+            {"objects", objects},
+            {"recall_0.5", recall_05 / n},
+            {"recall_0.7", recall_07 / n},
+            {"ap_0.5", ap_05 / n},
+            {"ap_0.7", ap_07 / n}};
   }
   void print(const std::string& label) const {
     const double n = scenes ? static_cast<double>(scenes) : 1.0;
-    std::printf("  %-22s %3zu scenes %4zu objects  recall@0.5 %.3f  @0.7 %.3f  AP@0.5 %.3f  @0.7 %.3f\n",
-                label.c_str(), scenes, objects, recall_05 / n, recall_07 / n, ap_05 / n, ap_07 / n);
+    std::printf(
+        "  %-22s %3zu scenes %4zu objects  recall@0.5 %.3f  @0.7 %.3f  AP@0.5 %.3f  @0.7 %.3f\n",
+        label.c_str(), scenes, objects, recall_05 / n, recall_07 / n, ap_05 / n, ap_07 / n);
   }
 };
 
@@ -265,7 +270,8 @@ int runEval(const EvalCommandOptions& options) {
   eval.validate();
   const std::vector<Category> categories = parseCategories(options.categories);
   prepareOutputFolder(options.out);
-  const SceneDiscovery set = labelledScenes(options.scenes, options.config, options.catalog, options.reading);
+  const SceneDiscovery set =
+      labelledScenes(options.scenes, options.config, options.catalog, options.reading);
   const LabelledSegments segs = discovery::labelledSegments(set, options.config.max_iou);
   writeFileAtomically(options.out / "segments.csv", segmentsCsv(set, segs));
 
@@ -295,7 +301,8 @@ int runEval(const EvalCommandOptions& options) {
 
 int runTrain(const TrainCommandOptions& options) {
   const discovery::ScoreKind kind = discovery::scoreKindFromString(options.kind);
-  const SceneDiscovery set = labelledScenes(options.scenes, options.config, options.catalog, options.reading);
+  const SceneDiscovery set =
+      labelledScenes(options.scenes, options.config, options.catalog, options.reading);
   const LabelledSegments segs = discovery::labelledSegments(set, options.config.max_iou);
   const std::vector<int> labels = segs.labels(options.min_iou);
   std::vector<discovery::MeasureRow> rows;

@@ -25,10 +25,10 @@ void addFusionOptions(CLI::App* sub, pipeline::FuseOptions& o);
 /// discover's, eval's, train's and scan's: --min-size, --paper-segmentation.
 void addDiscoveryOptions(CLI::App* sub, discovery::DiscoveryConfig& config);
 
-/// eval's and train's: the labelled scenes and the catalog.
 /// --intrinsics: the camera of unorganized PCD scenes.
 void addSceneReading(CLI::App* sub, discovery::SceneReading& reading);
 
+/// eval's and train's: the labelled scenes and the catalog.
 void addLabelledScenes(CLI::App* sub, std::vector<std::filesystem::path>& scenes,
                        std::optional<std::filesystem::path>& catalog);
 

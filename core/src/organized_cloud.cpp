@@ -108,11 +108,12 @@ PcdHeader parseHeader(const fs::path& path, const std::string& bytes, std::size_
     } else if (key == "DATA" && rest.size() == 1) {
       h.data = rest[0];
       if (h.data != "ascii" && h.data != "binary" && h.data != "binary_compressed") {
-        throw InputError(path, "DATA " + h.data +
-                                   " is not a PCD encoding (ascii, binary, binary_compressed)");
+        throw InputError(
+            path, "DATA " + h.data + " is not a PCD encoding (ascii, binary, binary_compressed)");
       }
     } else {
-      throw InputError(path, "the PCD header line \"" + line.substr(0, 60) + "\" is not understood");
+      throw InputError(path,
+                       "the PCD header line \"" + line.substr(0, 60) + "\" is not understood");
     }
   }
   if (h.fields.empty()) throw InputError(path, "the PCD header has no FIELDS");
@@ -123,8 +124,7 @@ PcdHeader parseHeader(const fs::path& path, const std::string& bytes, std::size_
   if (!have_width) throw InputError(path, "the PCD header has no WIDTH");
   if (!have_height) h.height = 1;  // v0.5 files may leave it out
   if (!have_points) h.points = h.width * h.height;
-  if (h.width == 0 || h.height == 0 || h.points != h.width * h.height ||
-      h.points > kMaxPoints) {
+  if (h.width == 0 || h.height == 0 || h.points != h.width * h.height || h.points > kMaxPoints) {
     throw InputError(path, "the PCD header's WIDTH x HEIGHT (" + std::to_string(h.width) + " x " +
                                std::to_string(h.height) + ") does not match POINTS " +
                                std::to_string(h.points));
@@ -140,8 +140,8 @@ PcdHeader parseHeader(const fs::path& path, const std::string& bytes, std::size_
     const bool size_ok = f.type == 'F' ? (f.size == 4 || f.size == 8)
                                        : (f.size == 1 || f.size == 2 || f.size == 4 || f.size == 8);
     if (!size_ok || f.count == 0 || f.count > 1024) {
-      throw InputError(path, "field " + f.name + " has SIZE " + sizes[i] + " and TYPE " +
-                                 types[i] + " with COUNT " + std::to_string(f.count) +
+      throw InputError(path, "field " + f.name + " has SIZE " + sizes[i] + " and TYPE " + types[i] +
+                                 " with COUNT " + std::to_string(f.count) +
                                  ", which no PCD writer produces");
     }
     f.offset = h.point_bytes;
@@ -237,7 +237,8 @@ void setPoint(OrganizedCloud& c, std::size_t i, double x, double y, double z) {
 
 std::uint32_t labelValue(const fs::path& path, double v, std::size_t point) {
   if (v < 0 || v > std::numeric_limits<std::uint32_t>::max()) {
-    throw InputError(path, "point " + std::to_string(point) + " has a negative label");
+    throw InputError(path,
+                     "point " + std::to_string(point) + " has a label outside 0 .. 4294967295");
   }
   return static_cast<std::uint32_t>(v);
 }
@@ -353,10 +354,10 @@ OrganizedCloud readPcd(const fs::path& path) {
   }
   std::string raw(expected, '\0');
   const unsigned int got =
-      expected == 0 ? 0
-                    : lzf_decompress(bytes.data() + pos + sizeof sizes,
-                                     static_cast<unsigned int>(compressed), raw.data(),
-                                     static_cast<unsigned int>(expected));
+      expected == 0
+          ? 0
+          : lzf_decompress(bytes.data() + pos + sizeof sizes, static_cast<unsigned int>(compressed),
+                           raw.data(), static_cast<unsigned int>(expected));
   if (got != expected) {
     throw InputError(path, "the PCD's compressed data is corrupt (it does not decompress to " +
                                std::to_string(expected) + " bytes)");

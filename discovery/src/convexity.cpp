@@ -6,8 +6,8 @@
 #include <unordered_map>
 #include <utility>
 
-#include <Eigen/Eigenvalues>
 #include <tbb/parallel_for.h>
+#include <Eigen/Eigenvalues>
 
 #include "disjoint_sets.h"
 
@@ -84,7 +84,8 @@ Patches makePatches(const TriangleMesh& mesh, const MeshGraph& graph,
   const std::size_t m = p.size.size();
   // Centroids, then the scatter about them; the normal is the scatter's least direction, turned
   // to the side the vertex normals face.
-  std::vector<Eigen::Vector3d> sum(m, Eigen::Vector3d::Zero()), normal_sum(m, Eigen::Vector3d::Zero());
+  std::vector<Eigen::Vector3d> sum(m, Eigen::Vector3d::Zero()),
+      normal_sum(m, Eigen::Vector3d::Zero());
   for (std::size_t v = 0; v < n; ++v) {
     if (p.of_vertex[v] < 0) continue;
     const auto k = static_cast<std::size_t>(p.of_vertex[v]);
@@ -117,7 +118,8 @@ Patches makePatches(const TriangleMesh& mesh, const MeshGraph& graph,
     const std::int32_t b = p.of_vertex[static_cast<std::size_t>(e.b)];
     if (a < 0 || b < 0 || a == b) continue;
     const auto lo = std::min(a, b), hi = std::max(a, b);
-    const std::uint64_t key = (static_cast<std::uint64_t>(lo) << 32) | static_cast<std::uint32_t>(hi);
+    const std::uint64_t key =
+        (static_cast<std::uint64_t>(lo) << 32) | static_cast<std::uint32_t>(hi);
     const auto [it, added] = index.emplace(key, static_cast<std::int32_t>(p.pairs.size()));
     if (added) {
       p.pairs.emplace_back(lo, hi);

@@ -215,19 +215,17 @@ void rankAll(SceneDiscovery& run, const ObjectnessModel& scorer, double max_iou)
                    });
 }
 
-}  // namespace
-
-namespace {
-
 bool isPcd(const fs::path& path) {
   std::string ext = path.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return std::tolower(c); });
   return ext == ".pcd";
 }
 
-/// Object ids of a mesh's vertices with each object's parts (10 k + p) merged into object k.
+/// Object ids of a mesh's vertices (object parts, as meshOrganized gives them) with each object's
+/// parts merged.
 std::vector<std::int32_t> wholeObjectIds(std::vector<std::int32_t> parts) {
-  for (std::int32_t& id : parts) id = id >= 10 ? id / 10 : 0;
+  for (std::int32_t& id : parts) id = objectIdOfLabel(static_cast<std::uint32_t>(id), true);
   return parts;
 }
 
@@ -262,7 +260,8 @@ SceneInput sceneFromCloud(std::string name, const OrganizedCloud& cloud, bool la
   } catch (const std::invalid_argument& e) {
     throw InputError(name, e.what());
   }
-  if (mesh.empty()) throw InputError(name, "the cloud has no valid point (all NaN or behind the camera)");
+  if (mesh.empty())
+    throw InputError(name, "the cloud has no valid point (all NaN or behind the camera)");
   if (mesh.triangles.empty()) {
     throw InputError(name, "no two neighbouring pixels of the cloud join into a surface");
   }
@@ -289,9 +288,9 @@ SceneInput sceneFromCloud(std::string name, const OrganizedCloud& cloud, bool la
 
 SceneInput loadScene(const fs::path& argument, const SceneReading& reading) {
   if (isPcd(argument)) {
-    SceneInput scene = sceneFromCloud(argument.string(),
-                                      organizedCloudOf(argument, reading.intrinsics),
-                                      reading.labelled, reading.meshing);
+    SceneInput scene =
+        sceneFromCloud(argument.string(), organizedCloudOf(argument, reading.intrinsics),
+                       reading.labelled, reading.meshing);
     if (reading.hash) scene.content_hash = contentHash(argument);
     return scene;
   }
@@ -430,7 +429,8 @@ std::vector<ObjectRecall> objectRecall(const SceneDiscovery& run, const Labelled
 
 std::vector<SceneRecall> sceneRecall(const SceneDiscovery& run, bool whole_objects) {
   std::vector<std::vector<std::vector<std::int32_t>>> ranked(run.scenes.size());
-  for (const RankedHypothesis& h : run.ranked) ranked[h.scene].push_back(h.hypothesis.segment.vertices);
+  for (const RankedHypothesis& h : run.ranked)
+    ranked[h.scene].push_back(h.hypothesis.segment.vertices);
   std::vector<SceneRecall> out;
   for (std::size_t s = 0; s < run.scenes.size(); ++s) {
     const DiscoveredScene& scene = run.scenes[s];

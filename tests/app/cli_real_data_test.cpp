@@ -48,8 +48,8 @@ TEST(CliRealData, EvalOnLabelledKinectScansFindsTheirObjects) {
 TEST(CliRealData, DiscoverReadsAKinectScanAndRefusesADamagedOne) {
   testing::TempDir dir;
   const std::string scan = std::string(OBJSCAN_DATA_DIR) + "/mosd_learn/learn1.pcd";
-  testing::ProcessResult r = testing::objscan(
-      {"discover", scan, "--out", (dir.path() / "d").string(), "--no-catalog"});
+  testing::ProcessResult r =
+      testing::objscan({"discover", scan, "--out", (dir.path() / "d").string(), "--no-catalog"});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   std::ifstream in(dir.path() / "d" / "hypotheses.json");
   EXPECT_GE(nlohmann::json::parse(in).at("hypotheses").size(), 2u);

@@ -46,8 +46,8 @@ std::string header(const Points& p, const std::string& data, const std::string& 
   std::ostringstream h;
   h << "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS label x y z rgba\n"
     << "SIZE 4 4 4 4 4\nTYPE " << label_type << " F F F U\nCOUNT 1 1 1 1 1\nWIDTH " << p.width
-    << "\nHEIGHT " << p.height << "\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " << p.xyz.size()
-    << "\nDATA " << data << "\n";
+    << "\nHEIGHT " << p.height << "\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " << p.xyz.size() << "\nDATA "
+    << data << "\n";
   return h.str();
 }
 
@@ -114,7 +114,8 @@ void expectCloud(const OrganizedCloud& c, const Points& p, float tolerance) {
       continue;
     }
     EXPECT_TRUE(c.points_C[i].isApprox(p.xyz[i], tolerance)) << i;
-    EXPECT_EQ(c.colors[i], Rgb8((p.rgba[i] >> 16) & 0xff, (p.rgba[i] >> 8) & 0xff, p.rgba[i] & 0xff));
+    EXPECT_EQ(c.colors[i],
+              Rgb8((p.rgba[i] >> 16) & 0xff, (p.rgba[i] >> 8) & 0xff, p.rgba[i] & 0xff));
     EXPECT_EQ(c.labels[i], p.label[i]);
   }
   EXPECT_EQ(c.validCount(), p.xyz.size() - 1);
@@ -238,7 +239,8 @@ TEST(OrganizedCloud, AnUnorganizedCloudGoesBackOnItsPixelGrid) {
   OrganizedCloud scattered;
   scattered.height = 1;
   for (int i = 0; i < 500; ++i) {
-    scattered.points_C.emplace_back(std::sin(i * 1.3f), std::cos(i * 0.7f), 2.0f + std::sin(i * 0.1f));
+    scattered.points_C.emplace_back(std::sin(i * 1.3f), std::cos(i * 0.7f),
+                                    2.0f + std::sin(i * 0.1f));
   }
   scattered.width = 500;
   EXPECT_FALSE(fitPinhole(scattered).has_value());

@@ -35,7 +35,8 @@ std::vector<std::int32_t> parts(const TriangleMesh& mesh) {
 }
 
 /// The best IoU of any segment of `s` with each part.
-std::map<std::int32_t, double> bestIoUs(const Segmentation& s, const std::vector<std::int32_t>& part) {
+std::map<std::int32_t, double> bestIoUs(const Segmentation& s,
+                                        const std::vector<std::int32_t>& part) {
   std::map<std::int32_t, std::vector<std::int32_t>> truth, segments;
   for (std::size_t v = 0; v < part.size(); ++v) {
     truth[part[v]].push_back(static_cast<std::int32_t>(v));

@@ -97,9 +97,9 @@ struct DiscoveredScene {
   SceneCandidates candidates;  ///< recurrence filled in
   bool from_catalog = false;   ///< candidates and measures read from the catalog, not computed
   std::int64_t scene_id = 0;   ///< in the catalog, or the scene's index without one
-  std::optional<GroundTruthObjects> truth;  ///< labelled runs only
+  std::optional<GroundTruthObjects> truth;          ///< labelled runs only
   std::optional<GroundTruthObjects> whole_objects;  ///< SceneInput::whole_objects
-  std::size_t hypotheses = 0;               ///< how many of SceneDiscovery::ranked are this scene's
+  std::size_t hypotheses = 0;  ///< how many of SceneDiscovery::ranked are this scene's
 };
 
 /// A hypothesis of a run: the scene it is in (index into SceneDiscovery::scenes) and itself.
@@ -162,8 +162,8 @@ std::vector<ObjectRecall> objectRecall(const SceneDiscovery& discovery,
 /// How well one scene's ranked hypotheses (SceneDiscovery::ranked, as discover hands them out)
 /// find its ground-truth objects: evaluateRanking at IoU 0.5 and 0.7.
 struct SceneRecall {
-  std::size_t scene = 0;    ///< index into SceneDiscovery::scenes
-  std::size_t objects = 0;  ///< ground-truth objects with at least one vertex
+  std::size_t scene = 0;                    ///< index into SceneDiscovery::scenes
+  std::size_t objects = 0;                  ///< ground-truth objects with at least one vertex
   double recall_05 = 0.0, recall_07 = 0.0;  ///< objects found / objects
   double ap_05 = 0.0, ap_07 = 0.0;          ///< averagePrecisionOfRanking
 };
