@@ -67,7 +67,8 @@ Command addEvalCommand(CLI::App& app) {
       "--no-classifiers", [&eval_options] { eval_options.classifiers = false; },
       "Skip the classifier protocol: object recall and per-scene figures only");
   eval->add_option("--category", eval_options.categories,
-                   "NAME=REGEX: scenes whose file name matches REGEX form category NAME in the "
+                   "NAME=REGEX: scenes whose whole file name matches REGEX (POSIX extended) form "
+                   "category NAME in the "
                    "per-scene figures (the first that matches; repeatable)");
 
   return {eval, [options, eval] {

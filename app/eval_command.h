@@ -15,15 +15,15 @@ struct EvalCommandOptions {
   std::vector<std::filesystem::path> scenes;  ///< labelled scenes (see readScenes)
   std::filesystem::path out;
   discovery::DiscoveryConfig config;
-  discovery::SceneReading reading;  ///< how PCD scenes are read (--intrinsics)
+  discovery::SceneReading reading;               ///< how PCD scenes are read (--intrinsics)
   std::optional<std::filesystem::path> catalog;  ///< nothing: no catalog
   int splits = 20;
   std::uint64_t seed = 1;
   bool ablation = true;
   /// Skip the classifier protocol (AP over random halvings): recall and per-scene figures only.
   bool classifiers = true;
-  /// Scene categories for the per-category figures: NAME=REGEX, the regular expression matched
-  /// against a scene's file name; the first that matches. Unmatched scenes: "other".
+  /// Scene categories for the per-category figures: NAME=REGEX, a POSIX extended regular expression
+  /// matched against a scene's file name; the first that matches. Unmatched scenes: "other".
   std::vector<std::string> categories;
   report::Settings settings;  ///< the command line's, for OUT/settings.json
 };
