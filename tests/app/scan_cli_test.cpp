@@ -495,7 +495,8 @@ TEST(ScanCliLive, CtrlCEndsLiveCaptureAndTheScanGoesOn) {
   EXPECT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("capture       ended by Ctrl-C after"), std::string::npos) << r.out;
   const std::size_t fused = readTumTrajectory(out / "trajectory.txt").size();
-  EXPECT_GE(fused, 4u);
+  // What the scan said (skipped frames, lost tracking) explains a short trajectory.
+  EXPECT_GE(fused, 4u) << r.out << r.err;
   EXPECT_LT(fused, 40u);
   EXPECT_TRUE(fs::is_regular_file(out / "report.html"));
   EXPECT_FALSE(readJson(out / "timings.json").at("interrupted").get<bool>());
