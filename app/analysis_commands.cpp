@@ -22,8 +22,11 @@ Command addDiscoverCommand(CLI::App& app) {
   discover
       ->add_option("meshes", discover_options.meshes,
                    "Scenes: meshes (.ply, e.g. objscan fuse's mesh.ply), folders holding one, or a "
-                   "camera's point clouds (.pcd)")
+                   "camera's point clouds (.pcd); with --frame, <source>s as fuse takes them")
       ->required();
+  discover->add_option("--frame", discover_options.frame,
+                       "Discover objects in this one frame (0-based) of each <source> (a "
+                       "recording, a dataset folder, synth:<seed>, live, virtual:...)");
   discover->add_option("--out", discover_options.out, "Folder for hypotheses.json and objects/")
       ->required();
   auto* catalog_option =

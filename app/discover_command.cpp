@@ -6,6 +6,7 @@
 #include "exit_codes.h"
 #include "objscan/core/output_folder.h"
 #include "objscan/core/progress.h"
+#include "objscan/pipeline/frame_scene.h"
 #include "objscan/report/results_io.h"
 
 namespace objscan::app {
@@ -71,17 +72,27 @@ void printDiscoverSummary(const DiscoverCommandOptions& options,
 
 int runDiscover(const DiscoverCommandOptions& options) {
   const discovery::SceneDiscoveryOptions library = sceneDiscoveryOptions(options);
-  prepareOutputFolder(options.out);
   std::vector<discovery::SceneInput> scenes;
   {
     ProgressBar progress("reading scenes", options.meshes.size());
     for (const std::filesystem::path& mesh : options.meshes) {
       discovery::SceneReading reading = options.reading;
       reading.hash = library.catalog.has_value();
-      scenes.push_back(discovery::loadScene(mesh, reading));
+      if (options.frame) {
+        pipeline::SourceOptions source;
+        source.intrinsics = reading.intrinsics;
+        source.intrinsics_origin = "--intrinsics";
+        scenes.push_back(pipeline::sceneOfFrame(mesh.string(), *options.frame, source,
+                                                reading.meshing));
+        if (!reading.hash) scenes.back().content_hash.clear();
+      } else {
+        scenes.push_back(discovery::loadScene(mesh, reading));
+      }
       progress.advance();
     }
   }
+  // Once every scene has been read: a scene that cannot be leaves no output folder behind.
+  prepareOutputFolder(options.out);
   const discovery::SceneDiscovery run = discovery::discoverScenes(std::move(scenes), library);
   writeDiscoveryResults(options, run);
   report::Settings settings = options.settings;

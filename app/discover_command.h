@@ -1,5 +1,6 @@
 #pragma once
 
+#include <cstddef>
 #include <filesystem>
 #include <optional>
 #include <vector>
@@ -10,7 +11,10 @@
 namespace objscan::app {
 
 struct DiscoverCommandOptions {
+  /// Scenes as the command line names them: meshes, folders holding one, PCD clouds; with
+  /// `frame`, <source>s (openFrameSource) of which that one frame is the scene.
   std::vector<std::filesystem::path> meshes;
+  std::optional<std::size_t> frame;  ///< --frame N
   std::filesystem::path out;
   discovery::DiscoveryConfig config;
   discovery::SceneReading reading;  ///< how PCD scenes are read (--intrinsics)

@@ -7,6 +7,10 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <memory>
+#include <optional>
+#include <set>
 #include <random>
 #include <string>
 #include <vector>
@@ -14,8 +18,11 @@
 #include <nlohmann/json.hpp>
 
 #include "cli_expect.h"
+#include "objscan/capture/openni.h"
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/ply_io.h"
+#include "objscan/core/trajectory.h"
+#include "objscan/discovery/labels.h"
 #include "test_support.h"
 
 namespace objscan {
@@ -262,6 +269,60 @@ TEST(DiscoverCli, BadInputGivesOneErrorLine) {
                      2, "model.yml: not an objscan model");
   // The corrupt catalog is left as it was.
   EXPECT_EQ(readWholeFile(dir / "corrupt.sqlite"), std::string(4096, 'x'));
+}
+
+/// One frame of the shipped synthetic recording as a scene: the camera's points meshed, its
+/// objects found in them. The five best hypotheses, moved into the world by the frame's true pose,
+/// hold at least three different ground-truth objects, each of those 80 % or more of its
+/// hypothesis (a vertex takes the id of the true surface within 1 cm).
+TEST(DiscoverCli, OneFrameOfARecordingIsAScene) {
+  TempDir dir;
+  const fs::path oni = fs::path(OBJSCAN_SOURCE_DIR) / "recordings" / "synth_desk.oni";
+  const std::string out = (dir / "out").string();
+  const ProcessResult r = testing::runProcess(
+      {OBJSCAN_EXE, "discover", oni.string(), "--frame", "45", "--out", out, "--no-catalog"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json doc = readJson(dir / "out" / "hypotheses.json");
+  ASSERT_GE(doc["hypotheses"].size(), 5u);
+  EXPECT_EQ(doc["hypotheses"][0]["scene"], oni.string() + "@frame45");
+
+  capture::FrameSelection frame45;
+  frame45.start = 45;
+  frame45.end = 46;
+  const std::unique_ptr<capture::FrameSource> source = capture::openOniFile(oni, frame45);
+  const capture::FrameResult frame = source->next();
+  ASSERT_EQ(frame.status, capture::FrameStatus::kOk);
+  ASSERT_TRUE(source->info().ground_truth);
+  const std::optional<Pose> T_W_C =
+      nearestPose(*source->info().ground_truth, frame.frame.stamp_s, 0.02);
+  ASSERT_TRUE(T_W_C);
+  const TriangleMesh truth =
+      readPly(fs::path(OBJSCAN_SOURCE_DIR) / "recordings" / "synth_desk.scene_gt.ply");
+  std::set<std::int32_t> objects;
+  for (std::size_t rank = 0; rank < 5; ++rank) {
+    TriangleMesh part = readPly(dir / "out" / doc["hypotheses"][rank]["file"].get<std::string>());
+    for (Eigen::Vector3f& p : part.positions) p = *T_W_C * p;
+    const std::vector<std::int32_t> ids = discovery::transferLabels(part, truth, 0.01f);
+    std::map<std::int32_t, std::size_t> count;
+    for (std::int32_t id : ids) ++count[id];
+    const auto best = std::max_element(count.begin(), count.end(), [](auto& a, auto& b) {
+      return a.second < b.second;
+    });
+    const double share = static_cast<double>(best->second) / static_cast<double>(ids.size());
+    if (best->first != 0 && share >= 0.8) objects.insert(best->first);
+  }
+  EXPECT_GE(objects.size(), 3u);
+
+  // Past the end, and a source that is not one: one error line, no output folder.
+  expectOneErrorLine(testing::runProcess({OBJSCAN_EXE, "discover", oni.string(), "--frame", "90",
+                                          "--out", (dir / "past").string(), "--no-catalog"}),
+                     2, "--frame 90 is past its end (it has 90 frames, numbered from 0)");
+  EXPECT_FALSE(fs::exists(dir / "past"));
+  expectOneErrorLine(
+      testing::runProcess({OBJSCAN_EXE, "discover", (dir / "nothing").string(), "--frame", "0",
+                           "--out", (dir / "past").string(), "--no-catalog"}),
+      2, "nothing: no such file or folder");
+  EXPECT_FALSE(fs::exists(dir / "past"));
 }
 
 /// Labelled scenes for train and eval: round mounds labelled whole (objects) and elongated
