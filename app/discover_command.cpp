@@ -82,8 +82,8 @@ int runDiscover(const DiscoverCommandOptions& options) {
         pipeline::SourceOptions source;
         source.intrinsics = reading.intrinsics;
         source.intrinsics_origin = "--intrinsics";
-        scenes.push_back(pipeline::sceneOfFrame(mesh.string(), *options.frame, source,
-                                                reading.meshing));
+        scenes.push_back(
+            pipeline::sceneOfFrame(mesh.string(), *options.frame, source, reading.meshing));
         if (!reading.hash) scenes.back().content_hash.clear();
       } else {
         scenes.push_back(discovery::loadScene(mesh, reading));

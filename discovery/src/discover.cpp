@@ -56,18 +56,26 @@ std::vector<ShapeMeasures> measureCandidates(const TriangleMesh& mesh, const Mes
   // largest first (so that the last to finish is a small one), and its repeats copy it.
   const std::vector<std::size_t> first = firstOfEach(candidates);
   std::vector<std::size_t> distinct;
+  // 1: a vertex of a measured candidate; 2: also one smoothness is averaged over.
   std::vector<std::uint8_t> wanted(mesh.positions.size(), 0);
   for (std::size_t i = 0; i < candidates.size(); ++i) {
     if (first[i] != i) continue;
     distinct.push_back(i);
-    for (std::int32_t v : candidates[i].vertices) wanted[static_cast<std::size_t>(v)] = 1;
+    for (std::int32_t v : candidates[i].vertices) {
+      std::uint8_t& w = wanted[static_cast<std::size_t>(v)];
+      w = std::max<std::uint8_t>(w, 1);
+    }
+    for (std::int32_t v : smoothnessSample(candidates[i].vertices)) {
+      wanted[static_cast<std::size_t>(v)] = 2;
+    }
   }
   std::stable_sort(distinct.begin(), distinct.end(), [&](std::size_t a, std::size_t b) {
     return candidates[a].vertices.size() > candidates[b].vertices.size();
   });
-  std::vector<std::int32_t> measured_vertices;
+  std::vector<std::int32_t> measured_vertices, smoothness_queries;
   for (std::size_t v = 0; v < wanted.size(); ++v) {
     if (wanted[v]) measured_vertices.push_back(static_cast<std::int32_t>(v));
+    if (wanted[v] == 2) smoothness_queries.push_back(static_cast<std::int32_t>(v));
   }
   // The look-ups, each timed with the measure that needs it (local convexity: the edges).
   SceneLookups lookups;
@@ -82,7 +90,7 @@ std::vector<ShapeMeasures> measureCandidates(const TriangleMesh& mesh, const Mes
   lookups.triangles = vertexTriangles(mesh);
   lap(0);
   lookups.neighbours = tangentNeighbours(mesh, measured_vertices, config.smoothness_radius_m,
-                                         config.smoothness_bins);
+                                         config.smoothness_bins, &smoothness_queries);
   lap(2);
 
   std::vector<ShapeMeasures> measures(candidates.size());
@@ -126,7 +134,7 @@ void DiscoveryConfig::validate() const {
 std::string settingsKey(const DiscoveryConfig& c) {
   std::ostringstream s;
   // Bump kMeasuresVersion whenever a measure's definition changes: the catalog then recomputes.
-  constexpr int kMeasuresVersion = 2;
+  constexpr int kMeasuresVersion = 3;
   s << std::setprecision(9) << "measures v" << kMeasuresVersion << " scales";
   for (float k : c.scales) s << ' ' << k;
   s << " min_size " << c.min_size << " density " << c.scale_with_density << ' '

@@ -346,9 +346,19 @@ double symmetry(const TriangleMesh& mesh, const Segment& segment, float beta) {
   return total;
 }
 
+std::vector<std::int32_t> smoothnessSample(const std::vector<std::int32_t>& vertices) {
+  constexpr std::size_t kSmoothnessQueries = 4000;
+  const std::size_t stride = (vertices.size() + kSmoothnessQueries - 1) / kSmoothnessQueries;
+  if (stride <= 1) return vertices;
+  std::vector<std::int32_t> sample;
+  sample.reserve(vertices.size() / stride + 1);
+  for (std::size_t i = 0; i < vertices.size(); i += stride) sample.push_back(vertices[i]);
+  return sample;
+}
+
 TangentNeighbours tangentNeighbours(const TriangleMesh& mesh,
                                     const std::vector<std::int32_t>& vertices, float radius_m,
-                                    int bins) {
+                                    int bins, const std::vector<std::int32_t>* queries) {
   if (!(radius_m > 0.0f) || bins < 2 || bins > 255) {
     throw std::invalid_argument(
         "smoothness needs a positive radius and between 2 and 255 angular bins");
@@ -360,6 +370,8 @@ TangentNeighbours tangentNeighbours(const TriangleMesh& mesh,
   out.indexed.assign(mesh.positions.size(), 0);
   std::vector<Eigen::Vector3f> points;
   points.reserve(vertices.size());
+  // Each vertex's place among the points (-1: not one), to find a query's own point.
+  std::vector<std::int32_t> point_of(mesh.positions.size(), -1);
   for (std::int32_t v : vertices) {
     if (v < 0 || static_cast<std::size_t>(v) >= mesh.positions.size()) {
       throw std::invalid_argument("smoothness: vertex " + std::to_string(v) +
@@ -368,24 +380,39 @@ TangentNeighbours tangentNeighbours(const TriangleMesh& mesh,
     if (!points.empty() && v <= vertices[points.size() - 1]) {
       throw std::invalid_argument("smoothness: the vertices must be given in increasing order");
     }
-    out.indexed[static_cast<std::size_t>(v)] = 1;
+    point_of[static_cast<std::size_t>(v)] = static_cast<std::int32_t>(points.size());
     points.push_back(mesh.positions[static_cast<std::size_t>(v)]);
   }
+  const std::vector<std::int32_t>& asked = queries ? *queries : vertices;
+  for (std::size_t i = 0; i < asked.size(); ++i) {
+    const std::int32_t v = asked[i];
+    if (v < 0 || static_cast<std::size_t>(v) >= mesh.positions.size() ||
+        point_of[static_cast<std::size_t>(v)] < 0) {
+      throw std::invalid_argument("smoothness: query vertex " + std::to_string(v) +
+                                  " is not among the vertices");
+    }
+    if (i > 0 && v <= asked[i - 1]) {
+      throw std::invalid_argument("smoothness: the queries must be given in increasing order");
+    }
+    out.indexed[static_cast<std::size_t>(v)] = 1;
+  }
   const PointIndex index(points);
-  // Blocks of vertices in parallel, each writing its own rows; joined in order afterwards.
+  // Blocks of queries in parallel, each writing its own rows; joined in order afterwards.
   struct Block {
     std::vector<std::uint32_t> counts;
     std::vector<std::int32_t> neighbours;
     std::vector<std::uint8_t> bin;
   };
   constexpr std::size_t kBlock = 2048;
-  std::vector<Block> blocks((vertices.size() + kBlock - 1) / kBlock);
+  std::vector<Block> blocks((asked.size() + kBlock - 1) / kBlock);
   tbb::parallel_for(std::size_t{0}, blocks.size(), [&](std::size_t b) {
     Block& block = blocks[b];
     std::vector<std::pair<std::uint32_t, float>> found;
-    const std::size_t end = std::min(vertices.size(), (b + 1) * kBlock);
-    for (std::size_t i = b * kBlock; i < end; ++i) {
-      const Eigen::Vector3f& n = mesh.normals[static_cast<std::size_t>(vertices[i])];
+    const std::size_t end = std::min(asked.size(), (b + 1) * kBlock);
+    for (std::size_t q = b * kBlock; q < end; ++q) {
+      const auto v = static_cast<std::size_t>(asked[q]);
+      const auto i = static_cast<std::uint32_t>(point_of[v]);
+      const Eigen::Vector3f& n = mesh.normals[v];
       // A tangent frame (t1, t2) at the vertex.
       const Eigen::Vector3f helper =
           std::abs(n.x()) < 0.9f ? Eigen::Vector3f::UnitX() : Eigen::Vector3f::UnitY();
@@ -407,7 +434,7 @@ TangentNeighbours tangentNeighbours(const TriangleMesh& mesh,
   std::size_t i = 0;
   for (const Block& block : blocks) {
     for (std::uint32_t count : block.counts) {
-      out.offsets[static_cast<std::size_t>(vertices[i++]) + 1] = count;
+      out.offsets[static_cast<std::size_t>(asked[i++]) + 1] = count;
     }
   }
   std::partial_sum(out.offsets.begin(), out.offsets.end(), out.offsets.begin());
@@ -421,7 +448,8 @@ TangentNeighbours tangentNeighbours(const TriangleMesh& mesh,
 }
 
 double smoothness(const TriangleMesh& mesh, const Segment& segment, float radius_m, int bins) {
-  return smoothness(tangentNeighbours(mesh, segment.vertices, radius_m, bins), segment);
+  const std::vector<std::int32_t> sample = smoothnessSample(segment.vertices);
+  return smoothness(tangentNeighbours(mesh, segment.vertices, radius_m, bins, &sample), segment);
 }
 
 double smoothness(const TangentNeighbours& neighbours, const Segment& segment) {
@@ -429,7 +457,8 @@ double smoothness(const TangentNeighbours& neighbours, const Segment& segment) {
   std::vector<int> histogram(static_cast<std::size_t>(neighbours.bins));
   const double log_bins = std::log(static_cast<double>(neighbours.bins));
   double sum = 0.0;
-  for (std::int32_t v : segment.vertices) {
+  const std::vector<std::int32_t> sample = smoothnessSample(segment.vertices);
+  for (std::int32_t v : sample) {
     const auto vi = static_cast<std::size_t>(v);
     if (vi >= neighbours.indexed.size() || !neighbours.indexed[vi]) {
       throw std::invalid_argument("smoothness: vertex " + std::to_string(v) +
@@ -450,7 +479,7 @@ double smoothness(const TangentNeighbours& neighbours, const Segment& segment) {
     }
     sum += entropy / log_bins;
   }
-  return sum / static_cast<double>(segment.vertices.size());
+  return sum / static_cast<double>(sample.size());
 }
 
 }  // namespace objscan::discovery

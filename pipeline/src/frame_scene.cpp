@@ -44,13 +44,11 @@ std::optional<std::size_t> framesOf(const std::string& source, const SourceOptio
 /// The source opened at frame `index`: for a recording, a folder or a synthetic scene the one
 /// frame selected; for a live sensor the stream, `index` frames still to skip.
 std::unique_ptr<capture::FrameSource> openAtFrame(const std::string& source, std::size_t index,
-                                                  const SourceOptions& options,
-                                                  std::size_t& skip) {
+                                                  const SourceOptions& options, std::size_t& skip) {
   SourceOptions one = options;
   one.selection = {};
   skip = 0;
-  if (source == "live" || source.rfind("live:", 0) == 0 ||
-      capture::isVirtualSensorUri(source)) {
+  if (source == "live" || source.rfind("live:", 0) == 0 || capture::isVirtualSensorUri(source)) {
     skip = index;
     return openFrameSource(source, one);
   }
@@ -85,8 +83,8 @@ discovery::SceneInput sceneOfFrame(const std::string& source, std::size_t index,
     if (result.status == capture::FrameStatus::kEndOfStream) throwPastEnd(source, index, {});
     if (i < skip) continue;
     if (result.status == capture::FrameStatus::kBadFrame) {
-      throw InputError(source, "frame " + std::to_string(index) +
-                                   " cannot be read: " + result.reason);
+      throw InputError(source,
+                       "frame " + std::to_string(index) + " cannot be read: " + result.reason);
     }
     OrganizedCloud cloud;
     try {

@@ -10,8 +10,8 @@
 #include <map>
 #include <memory>
 #include <optional>
-#include <set>
 #include <random>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -305,9 +305,8 @@ TEST(DiscoverCli, OneFrameOfARecordingIsAScene) {
     const std::vector<std::int32_t> ids = discovery::transferLabels(part, truth, 0.01f);
     std::map<std::int32_t, std::size_t> count;
     for (std::int32_t id : ids) ++count[id];
-    const auto best = std::max_element(count.begin(), count.end(), [](auto& a, auto& b) {
-      return a.second < b.second;
-    });
+    const auto best = std::max_element(count.begin(), count.end(),
+                                       [](auto& a, auto& b) { return a.second < b.second; });
     const double share = static_cast<double>(best->second) / static_cast<double>(ids.size());
     if (best->first != 0 && share >= 0.8) objects.insert(best->first);
   }

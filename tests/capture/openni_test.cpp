@@ -213,7 +213,9 @@ TEST_F(OpenNI, ReplayOfAMillimetreFolderIsBitIdentical) {
 
 TEST_F(OpenNI, ReplaySelectionKeepsRecordingIndices) {
   const fs::path oni = out_.path() / "session.oni";
-  ASSERT_EQ(record("virtual:" + folder().string(), oni).exit_code, 0);
+  // 10 Hz: the indices below are the folder's only if the recorder keeps every frame, which a
+  // loaded machine (the whole suite at -j2) does not at the sensor's 30 Hz.
+  ASSERT_EQ(record("virtual:" + folder().string() + "?fps=10", oni).exit_code, 0);
   FrameSelection selection;
   selection.start = 2;
   selection.end = 20;

@@ -342,6 +342,32 @@ TEST(ShapeMeasures, SmoothnessFromSharedSceneLookUpsEqualsBruteForcePerSegment) 
   EXPECT_THROW(tangentNeighbours(ball, {2, 1}, 0.015f, 8), std::invalid_argument);
 }
 
+TEST(ShapeMeasures, SmoothnessOfALargeSegmentAveragesOverItsSample) {
+  // A wavy 25 cm sheet of 10,201 vertices: more than 4,000, so every third vertex is averaged.
+  const TriangleMesh sheet = parametric(101, 101, false, false, [](float u, float v) {
+    return Eigen::Vector3f(0.25f * u, 0.25f * v, 0.01f * std::sin(12.0f * u) * std::cos(9.0f * v));
+  });
+  const Segment all = whole(sheet);
+  const std::vector<std::int32_t> sample = smoothnessSample(all.vertices);
+  ASSERT_EQ(sample.size(), 3401u);
+  EXPECT_EQ(smoothnessSample(sample), sample);  // 4,000 or fewer: all of them
+  // Scene look-ups that queried the sample measure it as the segment's own look-ups do...
+  const TangentNeighbours lookups = tangentNeighbours(sheet, all.vertices, 0.01f, 8, &sample);
+  const double value = smoothness(lookups, all);
+  EXPECT_NEAR(value, smoothness(sheet, all, 0.01f, 8), 1e-12);
+  // ... and their mean is within 0.01 of the mean over every vertex.
+  EXPECT_NEAR(value, referenceSmoothness(sheet, all, 0.01f, 8), 0.01);
+  // A query must be one of the vertices, in increasing order.
+  const std::vector<std::int32_t> outside = {0, 20000};
+  EXPECT_THROW(tangentNeighbours(sheet, all.vertices, 0.01f, 8, &outside), std::invalid_argument);
+  const std::vector<std::int32_t> backwards = {5, 3};
+  EXPECT_THROW(tangentNeighbours(sheet, all.vertices, 0.01f, 8, &backwards), std::invalid_argument);
+  // Look-ups that did not query a sampled vertex cannot measure the segment.
+  const std::vector<std::int32_t> first_only = {sample.front()};
+  EXPECT_THROW(smoothness(tangentNeighbours(sheet, all.vertices, 0.01f, 8, &first_only), all),
+               std::invalid_argument);
+}
+
 TEST(ShapeMeasures, SmoothnessOfASheetAndOfAThinStrip) {
   // A 20 cm sheet with vertices 2.5 mm apart: about 50 neighbours within 1 cm, all round.
   const TriangleMesh wide = parametric(81, 81, false, false, [](float u, float v) {
