@@ -78,16 +78,7 @@ int runDiscover(const DiscoverCommandOptions& options) {
     for (const std::filesystem::path& mesh : options.meshes) {
       discovery::SceneReading reading = options.reading;
       reading.hash = library.catalog.has_value();
-      if (options.frame) {
-        pipeline::SourceOptions source;
-        source.intrinsics = reading.intrinsics;
-        source.intrinsics_origin = "--intrinsics";
-        scenes.push_back(
-            pipeline::sceneOfFrame(mesh.string(), *options.frame, source, reading.meshing));
-        if (!reading.hash) scenes.back().content_hash.clear();
-      } else {
-        scenes.push_back(discovery::loadScene(mesh, reading));
-      }
+      scenes.push_back(pipeline::readScene(mesh, reading, options.frame));
       progress.advance();
     }
   }

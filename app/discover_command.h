@@ -17,7 +17,7 @@ struct DiscoverCommandOptions {
   std::optional<std::size_t> frame;  ///< --frame N
   std::filesystem::path out;
   discovery::DiscoveryConfig config;
-  discovery::SceneReading reading;               ///< how PCD scenes are read (--intrinsics)
+  discovery::SceneReading reading;  ///< how PCD scenes and frames are read (--intrinsics)
   std::optional<std::filesystem::path> catalog;  ///< nothing: the default catalog
   bool no_catalog = false;
   std::filesystem::path model;  ///< empty: the unsupervised average

@@ -178,9 +178,12 @@ void addLabelledScenes(CLI::App* sub, std::vector<std::filesystem::path>& scenes
 void addSceneReading(CLI::App* sub, discovery::SceneReading& reading) {
   sub->add_option_function<std::string>(
       "--intrinsics",
-      [&reading](const std::string& file) { reading.intrinsics = readIntrinsicsJson(file); },
-      "intrinsics.json of the camera of unorganized PCD scenes (default: the pinhole that fits "
-      "their points)");
+      [&reading](const std::string& file) {
+        reading.intrinsics = readIntrinsicsJson(file);
+        reading.intrinsics_origin = file;
+      },
+      "intrinsics.json of the camera: of unorganized PCD scenes (default: the pinhole that fits "
+      "their points), or replacing the source's with --frame");
 }
 
 void addPictureOptions(CLI::App* sub, pipeline::PictureOptions& o) {

@@ -1,10 +1,10 @@
 // Not a benchmark: pictures of the objects discovery misses on labelled single views, for
 // docs/discovery.md. The scenes are discovered together, as `objscan eval` does (no catalog, the
-// measures normalised over them); an object part (mOSD's labels) is missed when no hypothesis of
-// its scene reaches IoU 0.7 with it. For each scene with a miss, OUT/<scene>.jpg shows the camera's
-// colour image, dimmed: every object outlined (green: found, red: missed), and the hypothesis that
-// overlaps each missed object most filled in its own colour, captioned with the IoU and its rank
-// within the scene.
+// measures normalised over them); an object part (mOSD's labels) is missed when evaluateRanking at
+// IoU 0.7 does not find it among its scene's hypotheses, as eval counts it. For each scene with a
+// miss, OUT/<scene>.jpg shows the camera's colour image, dimmed: every object outlined (green:
+// found, red: missed), and the hypothesis that overlaps each missed object most filled in its own
+// colour, captioned with the IoU and its rank within the scene.
 //
 //   miss_pictures OUT_DIR <scene.pcd>...
 
@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <map>
+#include <set>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -22,6 +23,7 @@
 
 #include "bench_main.h"
 #include "objscan/core/organized_cloud.h"
+#include "objscan/discovery/evaluation.h"
 #include "objscan/discovery/labels.h"
 #include "objscan/discovery/scenes.h"
 
@@ -79,28 +81,33 @@ int run(int argc, char** argv) {
         object_vertices[truth.vertexLabels()[v]].push_back(static_cast<std::int32_t>(v));
       }
     }
-    // Each object's best hypothesis by IoU.
+    // Found: evaluateRanking at IoU 0.7 over the scene's ranking (eval's definition).
+    std::vector<std::vector<std::int32_t>> ranked_vertices;
+    for (const d::Hypothesis* h : ranked) ranked_vertices.push_back(h->segment.vertices);
+    std::set<std::int32_t> found;
+    for (const d::RankMatch& r : d::evaluateRanking(truth, ranked_vertices, 0.7).ranks) {
+      if (r.found) found.insert(r.match.object_id);
+    }
+    // For the picture, each missed object's most overlapping hypothesis (IoU with it alone).
     struct Best {
       double iou = 0.0;
       std::size_t rank = 0;  ///< 0: none overlaps it
     };
     std::map<std::int32_t, Best> best;
-    for (std::size_t r = 0; r < ranked.size(); ++r) {
-      const std::vector<std::int32_t>& hv = ranked[r]->segment.vertices;
-      std::map<std::int32_t, std::size_t> shared;
-      for (std::int32_t v : hv) {
-        const std::int32_t id = truth.vertexLabels()[static_cast<std::size_t>(v)];
-        if (id != 0) ++shared[id];
+    for (const auto& [id, vertices] : object_vertices) {
+      if (found.count(id)) {
+        best[id] = {1.0, 0};
+        continue;
       }
-      for (const auto& [id, n] : shared) {
-        const double iou =
-            static_cast<double>(n) / static_cast<double>(hv.size() + truth.objectSize(id) - n);
+      std::vector<std::int32_t> only(truth.vertexLabels().size(), 0);
+      for (std::int32_t v : vertices) only[static_cast<std::size_t>(v)] = id;
+      const d::GroundTruthObjects alone(std::move(only));
+      for (std::size_t r = 0; r < ranked.size(); ++r) {
+        const double iou = alone.bestMatch(ranked_vertices[r]).iou;
         if (iou > best[id].iou) best[id] = {iou, r + 1};
       }
     }
-    bool any_miss = false;
-    for (const auto& [id, vertices] : object_vertices) any_miss |= best[id].iou < 0.7;
-    if (!any_miss) continue;
+    if (found.size() == object_vertices.size()) continue;
 
     cv::Mat image(cloud.height, cloud.width, CV_8UC3, cv::Scalar(0, 0, 0));
     for (std::size_t i = 0; i < cloud.colors.size(); ++i) {
@@ -111,8 +118,8 @@ int run(int argc, char** argv) {
     std::size_t misses = 0;
     std::vector<std::string> captions;
     for (const auto& [id, vertices] : object_vertices) {
+      if (found.count(id)) continue;
       const Best& b = best[id];
-      if (b.iou >= 0.7) continue;
       const cv::Scalar fill = kFill[misses++ % 4];
       if (b.rank > 0) {
         const cv::Mat m =
@@ -128,7 +135,7 @@ int run(int argc, char** argv) {
     }
     for (const auto& [id, vertices] : object_vertices) {
       outline(image, maskOf(vertices, pixel, cloud.width, cloud.height),
-              best[id].iou >= 0.7 ? kFound : kMissed);
+              found.count(id) ? kFound : kMissed);
     }
     for (const auto& [id, vertices] : object_vertices) {
       cv::Mat m = maskOf(vertices, pixel, cloud.width, cloud.height);

@@ -17,8 +17,11 @@
 //             (at least 50 points): the usual table-top baseline.
 // Recall is per scene, over the object parts of the label field (each part an object, as the
 // database intends): the share of objects some segment covers at IoU 0.5 / 0.7, over the pixels
-// with a reading. objscan's figures are those of `objscan eval` (discover's ranking, after
-// suppression; its AP too); the peers' segments are not ranked, so they have recall only.
+// with a reading (evaluateRanking, the one definition eval uses). objscan's figures come from an
+// in-process run of the same discovery on the scene alone (no catalog, its measures normalised
+// over its own candidates, as one `discover` call does; `objscan eval` normalises over all its
+// scenes together, which gives a different AP): its ranked hypotheses, recall and AP by
+// sceneRecall. The peers' segments are not ranked, so they have recall only.
 // The ratio column is objscan's time over the peer's: below 1, objscan is faster.
 
 #include <fcntl.h>
@@ -52,6 +55,7 @@
 #include "bench_main.h"
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/organized_cloud.h"
+#include "objscan/discovery/evaluation.h"
 #include "objscan/discovery/labels.h"
 #include "objscan/discovery/scenes.h"
 
@@ -97,23 +101,16 @@ void runQuietly(const std::vector<std::string>& args) {
 }
 
 /// Recall at IoU 0.5 and 0.7 of unranked segments (lists of pixel indices) against the objects
-/// of `truth` (over pixel indices). A segment reaches IoU 0.5 with at most one object, its best
-/// match, so the best matches decide both thresholds.
+/// of `truth` (over pixel indices): evaluateRanking's share of objects found, which does not
+/// depend on the order.
 std::pair<double, double> recallOf(const std::vector<std::vector<std::int32_t>>& segments,
                                    const objscan::discovery::GroundTruthObjects& truth) {
-  std::map<std::int32_t, double> best;
-  for (const std::vector<std::int32_t>& s : segments) {
-    const objscan::discovery::ObjectMatch m = truth.bestMatch(s);
-    if (m.object_id != 0) best[m.object_id] = std::max(best[m.object_id], m.iou);
-  }
-  const std::vector<std::int32_t> ids = truth.objectIds();
-  if (ids.empty()) return {0.0, 0.0};
-  double r5 = 0.0, r7 = 0.0;
-  for (std::int32_t id : ids) {
-    r5 += best[id] >= 0.5 ? 1.0 : 0.0;
-    r7 += best[id] >= 0.7 ? 1.0 : 0.0;
-  }
-  return {r5 / static_cast<double>(ids.size()), r7 / static_cast<double>(ids.size())};
+  const auto at = [&](double iou) {
+    const objscan::discovery::RankingEvaluation e =
+        objscan::discovery::evaluateRanking(truth, segments, iou);
+    return e.objects ? static_cast<double>(e.found) / static_cast<double>(e.objects) : 0.0;
+  };
+  return {at(0.5), at(0.7)};
 }
 
 /// Pixel-index segments from a label per pixel (0: none).

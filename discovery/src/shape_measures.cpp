@@ -301,6 +301,13 @@ OrientedPoints orientedPoints(const TriangleMesh& mesh, const Segment& segment) 
   return out;
 }
 
+/// Symmetry and smoothness average over at most this many vertices of a segment: every
+/// sampleStride(n)-th of its n.
+constexpr std::size_t kMeasureSample = 4000;
+std::size_t sampleStride(std::size_t n) {
+  return std::max<std::size_t>(1, (n + kMeasureSample - 1) / kMeasureSample);
+}
+
 /// The angular bin, 0 .. bins - 1, of the direction d in the tangent frame (t1, t2).
 int angularBin(const Eigen::Vector3f& d, const Eigen::Vector3f& t1, const Eigen::Vector3f& t2,
                int bins) {
@@ -318,8 +325,7 @@ double symmetry(const TriangleMesh& mesh, const Segment& segment, float beta) {
   if (!(lambda_sum > 0.0f)) return 0.0;
   const PointIndex index(pts.p);
   const std::size_t n = pts.p.size();
-  constexpr std::size_t kSymmetryQueries = 4000;
-  const std::size_t stride = (n + kSymmetryQueries - 1) / kSymmetryQueries;
+  const std::size_t stride = sampleStride(n);
   double total = 0.0;
   for (int d = 0; d < 3; ++d) {
     const float r = segment.extents[d];
@@ -328,7 +334,7 @@ double symmetry(const TriangleMesh& mesh, const Segment& segment, float beta) {
     // O(MC, C): each mirrored vertex against the original's nearest. It equals O(C, MC), since
     // |p - M q| = |M p - q| and n . M n' = M n . n' (M is a reflection), so the nearest mirrored
     // vertex to p is the mirror of the nearest original vertex to M p.
-    // The mean over at most kSymmetryQueries evenly spaced vertices: on a dense single view (a
+    // The mean over at most kMeasureSample evenly spaced vertices: on a dense single view (a
     // segment of 30,000 vertices) the mean of every vertex costs ten times as much and moves by
     // less than its noise.
     double sum = 0.0;
@@ -347,9 +353,8 @@ double symmetry(const TriangleMesh& mesh, const Segment& segment, float beta) {
 }
 
 std::vector<std::int32_t> smoothnessSample(const std::vector<std::int32_t>& vertices) {
-  constexpr std::size_t kSmoothnessQueries = 4000;
-  const std::size_t stride = (vertices.size() + kSmoothnessQueries - 1) / kSmoothnessQueries;
-  if (stride <= 1) return vertices;
+  const std::size_t stride = sampleStride(vertices.size());
+  if (stride == 1) return vertices;
   std::vector<std::int32_t> sample;
   sample.reserve(vertices.size() / stride + 1);
   for (std::size_t i = 0; i < vertices.size(); i += stride) sample.push_back(vertices[i]);
@@ -381,6 +386,7 @@ TangentNeighbours tangentNeighbours(const TriangleMesh& mesh,
       throw std::invalid_argument("smoothness: the vertices must be given in increasing order");
     }
     point_of[static_cast<std::size_t>(v)] = static_cast<std::int32_t>(points.size());
+    out.indexed[static_cast<std::size_t>(v)] = 1;
     points.push_back(mesh.positions[static_cast<std::size_t>(v)]);
   }
   const std::vector<std::int32_t>& asked = queries ? *queries : vertices;
@@ -394,7 +400,7 @@ TangentNeighbours tangentNeighbours(const TriangleMesh& mesh,
     if (i > 0 && v <= asked[i - 1]) {
       throw std::invalid_argument("smoothness: the queries must be given in increasing order");
     }
-    out.indexed[static_cast<std::size_t>(v)] = 1;
+    out.indexed[static_cast<std::size_t>(v)] = 2;
   }
   const PointIndex index(points);
   // Blocks of queries in parallel, each writing its own rows; joined in order afterwards.
@@ -457,12 +463,20 @@ double smoothness(const TangentNeighbours& neighbours, const Segment& segment) {
   std::vector<int> histogram(static_cast<std::size_t>(neighbours.bins));
   const double log_bins = std::log(static_cast<double>(neighbours.bins));
   double sum = 0.0;
-  const std::vector<std::int32_t> sample = smoothnessSample(segment.vertices);
-  for (std::int32_t v : sample) {
+  // Every vertex must be among the look-ups' (a neighbour left out would be silently missed),
+  // and every vertex of the sample looked up.
+  for (std::int32_t v : segment.vertices) {
     const auto vi = static_cast<std::size_t>(v);
     if (vi >= neighbours.indexed.size() || !neighbours.indexed[vi]) {
       throw std::invalid_argument("smoothness: vertex " + std::to_string(v) +
                                   " is not among the vertices its look-ups were built for");
+    }
+  }
+  const std::vector<std::int32_t> sample = smoothnessSample(segment.vertices);
+  for (std::int32_t v : sample) {
+    const auto vi = static_cast<std::size_t>(v);
+    if (neighbours.indexed[vi] != 2) {
+      throw std::invalid_argument("smoothness: vertex " + std::to_string(v) + " was not looked up");
     }
     std::fill(histogram.begin(), histogram.end(), 0);
     int count = 0;

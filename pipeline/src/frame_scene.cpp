@@ -1,8 +1,8 @@
 #include "objscan/pipeline/frame_scene.h"
 
 #include <memory>
+#include <optional>
 #include <stdexcept>
-#include <string_view>
 #include <utility>
 
 #include "objscan/capture/virtual_sensor.h"
@@ -34,24 +34,19 @@ std::optional<std::size_t> framesOf(const std::string& source, const SourceOptio
   return openFrameSource(source, all)->info().frame_count;
 }
 
-[[noreturn]] void throwPastEnd(const std::string& source, std::size_t index,
+[[noreturn]] void throwPastEnd(const std::string& name, std::size_t index,
                                std::optional<std::size_t> frames) {
   std::string problem = "--frame " + std::to_string(index) + " is past its end";
   if (frames) problem += " (it has " + std::to_string(*frames) + " frames, numbered from 0)";
-  throw InputError(source, problem);
+  throw InputError(name, problem);
 }
 
-/// The source opened at frame `index`: for a recording, a folder or a synthetic scene the one
-/// frame selected; for a live sensor the stream, `index` frames still to skip.
-std::unique_ptr<capture::FrameSource> openAtFrame(const std::string& source, std::size_t index,
-                                                  const SourceOptions& options, std::size_t& skip) {
+/// An indexed source (not a sensor) opened at frame `index` alone; `name` is how errors call it.
+std::unique_ptr<capture::FrameSource> openAtFrame(const std::string& source,
+                                                  const std::string& name, std::size_t index,
+                                                  const SourceOptions& options) {
   SourceOptions one = options;
   one.selection = {};
-  skip = 0;
-  if (source == "live" || source.rfind("live:", 0) == 0 || capture::isVirtualSensorUri(source)) {
-    skip = index;
-    return openFrameSource(source, one);
-  }
   one.selection.start = index;
   one.selection.end = index + 1;
   std::unique_ptr<capture::FrameSource> opened;
@@ -61,12 +56,12 @@ std::unique_ptr<capture::FrameSource> openAtFrame(const std::string& source, std
     // A folder or synthetic source refuses a start past its end (in --start's words); anything
     // else it refuses, it refuses again without the selection, and that error is the one to see.
     const std::optional<std::size_t> frames = framesOf(source, options);
-    if (frames && index >= *frames) throwPastEnd(source, index, frames);
+    if (frames && index >= *frames) throwPastEnd(name, index, frames);
     throw;
   }
   if (opened->info().frame_count == std::optional<std::size_t>(0)) {
     opened.reset();  // OpenNI2 replays a file once at a time
-    throwPastEnd(source, index, framesOf(source, options));
+    throwPastEnd(name, index, framesOf(source, options));
   }
   return opened;
 }
@@ -74,13 +69,30 @@ std::unique_ptr<capture::FrameSource> openAtFrame(const std::string& source, std
 }  // namespace
 
 discovery::SceneInput sceneOfFrame(const std::string& source, std::size_t index,
-                                   const SourceOptions& options,
-                                   const OrganizedMeshConfig& meshing) {
-  std::size_t skip = 0;
-  std::unique_ptr<capture::FrameSource> frames = openAtFrame(source, index, options, skip);
+                                   const SourceOptions& options, const OrganizedMeshConfig& meshing,
+                                   bool hash) {
+  const bool sensor = isLiveSource(source) && !capture::isVirtualSensorUri(source);
+  // A virtual sensor streams a recording, a folder or a synthetic scene: read that directly.
+  const std::string indexed =
+      capture::isVirtualSensorUri(source) ? capture::parseVirtualSensorUri(source).source : source;
+  std::unique_ptr<capture::FrameSource> frames;
+  if (sensor) {
+    SourceOptions all = options;
+    all.selection = {};
+    frames = openFrameSource(source, all);
+  } else {
+    frames = openAtFrame(indexed, source, index, options);
+  }
+  const std::size_t skip = sensor ? index : 0;
   for (std::size_t i = 0;; ++i) {
     capture::FrameResult result = frames->next();
-    if (result.status == capture::FrameStatus::kEndOfStream) throwPastEnd(source, index, {});
+    if (result.status == capture::FrameStatus::kEndOfStream) {
+      if (sensor) {
+        throw InputError(source, "the sensor's stream ended before frame " + std::to_string(index));
+      }
+      frames.reset();
+      throwPastEnd(source, index, framesOf(indexed, options));
+    }
     if (i < skip) continue;
     if (result.status == capture::FrameStatus::kBadFrame) {
       throw InputError(source,
@@ -94,9 +106,19 @@ discovery::SceneInput sceneOfFrame(const std::string& source, std::size_t index,
     }
     discovery::SceneInput scene =
         discovery::sceneFromCloud(source + "@frame" + std::to_string(index), cloud, false, meshing);
-    scene.content_hash = discovery::contentHashOfBytes(frameBytes(result.frame));
+    if (hash) scene.content_hash = discovery::contentHashOfBytes(frameBytes(result.frame));
     return scene;
   }
+}
+
+discovery::SceneInput readScene(const std::filesystem::path& argument,
+                                const discovery::SceneReading& reading,
+                                std::optional<std::size_t> frame) {
+  if (!frame) return discovery::loadScene(argument, reading);
+  SourceOptions source;
+  source.intrinsics = reading.intrinsics;
+  source.intrinsics_origin = reading.intrinsics_origin;
+  return sceneOfFrame(argument.string(), *frame, source, reading.meshing, reading.hash);
 }
 
 }  // namespace objscan::pipeline

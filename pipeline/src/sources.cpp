@@ -9,20 +9,24 @@
 
 namespace objscan::pipeline {
 
+bool isLiveSource(const std::string& spec) {
+  return spec == "live" || spec.rfind("live:", 0) == 0 || capture::isVirtualSensorUri(spec);
+}
+
 std::unique_ptr<capture::FrameSource> openFrameSource(const std::string& spec,
                                                       const SourceOptions& options) {
   namespace fs = std::filesystem;
   const fs::path path(spec);
   std::error_code ec;
   const bool live = spec == "live" || spec.rfind("live:", 0) == 0;
-  if (options.record && !live && !capture::isVirtualSensorUri(spec)) {
+  if (options.record && !isLiveSource(spec)) {
     throw InputError(spec, "--record needs a live source (a sensor or virtual:...)");
   }
   if (spec.rfind("synth:", 0) == 0 || fs::is_directory(path, ec)) {
     return capture::openSynthOrFolderSource(spec, options.selection, options.intrinsics,
                                             options.intrinsics_origin);
   }
-  if (live || capture::isVirtualSensorUri(spec)) {
+  if (isLiveSource(spec)) {
     if (!options.selection.selectsAll()) {
       throw std::invalid_argument("--start/--end/--every apply to recordings, not live sensors");
     }

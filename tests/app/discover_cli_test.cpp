@@ -324,6 +324,39 @@ TEST(DiscoverCli, OneFrameOfARecordingIsAScene) {
   EXPECT_FALSE(fs::exists(dir / "past"));
 }
 
+/// A virtual sensor's frame N is its folder's frame N (read from the folder, not the stream, which
+/// drops frames on a loaded machine); the catalog knows a frame it has seen; a synthetic source
+/// past its end says how many frames it has.
+TEST(DiscoverCli, AFolderFrameIsTheSameSceneThroughAVirtualSensorAndTheCatalogKnowsIt) {
+  TempDir dir;
+  const std::string folder =
+      (fs::path(OBJSCAN_SOURCE_DIR) / "recordings" / "tum_fr2_desk_10").string();
+  const std::string catalog = (dir / "catalog.sqlite").string();
+  const auto discover = [&](const std::string& source, const std::string& out) {
+    return testing::runProcess({OBJSCAN_EXE, "discover", source, "--frame", "7", "--out",
+                                (dir / out).string(), "--catalog", catalog});
+  };
+  ProcessResult r = discover(folder, "a");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("scenes        1 (0 from the catalog)"), std::string::npos) << r.out;
+  r = discover("virtual:" + folder, "b");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("scenes        1 (1 from the catalog)"), std::string::npos) << r.out;
+  const nlohmann::json a = readJson(dir / "a" / "hypotheses.json");
+  const nlohmann::json b = readJson(dir / "b" / "hypotheses.json");
+  ASSERT_FALSE(a["hypotheses"].empty());
+  ASSERT_EQ(a["hypotheses"].size(), b["hypotheses"].size());
+  for (std::size_t i = 0; i < a["hypotheses"].size(); ++i) {
+    EXPECT_EQ(a["hypotheses"][i]["vertices"], b["hypotheses"][i]["vertices"]) << "rank " << i + 1;
+  }
+  EXPECT_EQ(b["hypotheses"][0]["scene"], "virtual:" + folder + "@frame7");
+  expectOneErrorLine(testing::runProcess({OBJSCAN_EXE, "discover", "synth:5", "--frame", "5000",
+                                          "--out", (dir / "c").string(), "--no-catalog"}),
+                     2,
+                     "synth:5: --frame 5000 is past its end (it has 300 frames, numbered from 0)");
+  EXPECT_FALSE(fs::exists(dir / "c"));
+}
+
 /// Labelled scenes for train and eval: round mounds labelled whole (objects) and elongated
 /// ones labelled on one half only (so their best IoU is about 0.5: not objects), sizes drawn
 /// with the seed.

@@ -9,6 +9,7 @@
 #include <functional>
 #include <limits>
 #include <random>
+#include <set>
 #include <stdexcept>
 #include <vector>
 
@@ -289,11 +290,14 @@ TEST(ShapeMeasures, SymmetryEqualsBothSidesComputedByBruteForce) {
               1e-5 * referenceSymmetry(hook, half, 0.5f));
 }
 
-/// Smoothness by brute force: for each vertex of the segment, every other vertex of the segment
-/// within the radius, binned by its direction in the same tangent frame.
-double referenceSmoothness(const TriangleMesh& mesh, const Segment& s, float radius, int bins) {
+/// Smoothness by brute force: for each vertex of the segment's sample (of every vertex with
+/// `sampled` false), every other vertex of the segment within the radius, binned by its direction
+/// in the same tangent frame.
+double referenceSmoothness(const TriangleMesh& mesh, const Segment& s, float radius, int bins,
+                           bool sampled = true) {
   double sum = 0.0;
-  for (std::int32_t v : s.vertices) {
+  const std::vector<std::int32_t> over = sampled ? smoothnessSample(s.vertices) : s.vertices;
+  for (std::int32_t v : over) {
     const Eigen::Vector3f& p = mesh.positions[static_cast<std::size_t>(v)];
     const Eigen::Vector3f& n = mesh.normals[static_cast<std::size_t>(v)];
     const Eigen::Vector3f helper =
@@ -317,7 +321,7 @@ double referenceSmoothness(const TriangleMesh& mesh, const Segment& s, float rad
     }
     sum += entropy / std::log(static_cast<double>(bins));
   }
-  return sum / static_cast<double>(s.vertices.size());
+  return sum / static_cast<double>(over.size());
 }
 
 TEST(ShapeMeasures, SmoothnessFromSharedSceneLookUpsEqualsBruteForcePerSegment) {
@@ -343,29 +347,52 @@ TEST(ShapeMeasures, SmoothnessFromSharedSceneLookUpsEqualsBruteForcePerSegment) 
 }
 
 TEST(ShapeMeasures, SmoothnessOfALargeSegmentAveragesOverItsSample) {
-  // A wavy 25 cm sheet of 10,201 vertices: more than 4,000, so every third vertex is averaged.
-  const TriangleMesh sheet = parametric(101, 101, false, false, [](float u, float v) {
-    return Eigen::Vector3f(0.25f * u, 0.25f * v, 0.01f * std::sin(12.0f * u) * std::cos(9.0f * v));
-  });
+  // A wavy, jittered 25 cm sheet of 10,201 vertices, and two overlapping parts of it, each of more
+  // than 4,000 vertices: each averages over every second or third of its vertices.
+  const TriangleMesh sheet = jittered(
+      parametric(101, 101, false, false,
+                 [](float u, float v) {
+                   return Eigen::Vector3f(0.25f * u, 0.25f * v,
+                                          0.01f * std::sin(12.0f * u) * std::cos(9.0f * v));
+                 }),
+      5e-4f);
   const Segment all = whole(sheet);
-  const std::vector<std::int32_t> sample = smoothnessSample(all.vertices);
-  ASSERT_EQ(sample.size(), 3401u);
-  EXPECT_EQ(smoothnessSample(sample), sample);  // 4,000 or fewer: all of them
-  // Scene look-ups that queried the sample measure it as the segment's own look-ups do...
-  const TangentNeighbours lookups = tangentNeighbours(sheet, all.vertices, 0.01f, 8, &sample);
-  const double value = smoothness(lookups, all);
-  EXPECT_NEAR(value, smoothness(sheet, all, 0.01f, 8), 1e-12);
-  // ... and their mean is within 0.01 of the mean over every vertex.
-  EXPECT_NEAR(value, referenceSmoothness(sheet, all, 0.01f, 8), 0.01);
+  const Segment left = part(sheet, [](const Eigen::Vector3f& p) { return p.x() < 0.15f; });
+  const Segment low = part(sheet, [](const Eigen::Vector3f& p) { return p.y() < 0.12f; });
+  ASSERT_EQ(smoothnessSample(all.vertices).size(), 3401u);
+  EXPECT_EQ(smoothnessSample(left.vertices).size(),
+            (left.vertices.size() + 1) / 2);  // 4,001 to 8,000 vertices: every second
+  const std::vector<std::int32_t> few(all.vertices.begin(), all.vertices.begin() + 4000);
+  EXPECT_EQ(smoothnessSample(few), few);  // 4,000 or fewer: all of them
+  // One set of look-ups for the scene, querying only the union of the parts' samples (a strict
+  // subset of the vertices): each part's value is the brute-force mean over its sample.
+  std::set<std::int32_t> asked;
+  for (const Segment* s : {&left, &low}) {
+    for (std::int32_t v : smoothnessSample(s->vertices)) asked.insert(v);
+  }
+  const std::vector<std::int32_t> queries(asked.begin(), asked.end());
+  ASSERT_LT(queries.size(), all.vertices.size());
+  const TangentNeighbours scene = tangentNeighbours(sheet, all.vertices, 0.01f, 8, &queries);
+  for (const Segment* s : {&left, &low}) {
+    const double expected = referenceSmoothness(sheet, *s, 0.01f, 8);
+    EXPECT_GT(expected, 0.5);
+    EXPECT_NEAR(smoothness(scene, *s), expected, 1e-12);
+    EXPECT_NEAR(smoothness(sheet, *s, 0.01f, 8), expected, 1e-12);
+    // The sample's mean is within 0.01 of the mean over every vertex.
+    EXPECT_NEAR(expected, referenceSmoothness(sheet, *s, 0.01f, 8, false), 0.01);
+  }
+  // The whole sheet's sample was not all looked up; a part's vertices must all be among the
+  // look-ups' (not only its sample), or a neighbour would be missed.
+  EXPECT_THROW(smoothness(scene, all), std::invalid_argument);
+  const std::vector<std::int32_t> left_sample = smoothnessSample(left.vertices);
+  const TangentNeighbours sample_only =
+      tangentNeighbours(sheet, left_sample, 0.01f, 8, &left_sample);
+  EXPECT_THROW(smoothness(sample_only, left), std::invalid_argument);
   // A query must be one of the vertices, in increasing order.
   const std::vector<std::int32_t> outside = {0, 20000};
   EXPECT_THROW(tangentNeighbours(sheet, all.vertices, 0.01f, 8, &outside), std::invalid_argument);
   const std::vector<std::int32_t> backwards = {5, 3};
   EXPECT_THROW(tangentNeighbours(sheet, all.vertices, 0.01f, 8, &backwards), std::invalid_argument);
-  // Look-ups that did not query a sampled vertex cannot measure the segment.
-  const std::vector<std::int32_t> first_only = {sample.front()};
-  EXPECT_THROW(smoothness(tangentNeighbours(sheet, all.vertices, 0.01f, 8, &first_only), all),
-               std::invalid_argument);
 }
 
 TEST(ShapeMeasures, SmoothnessOfASheetAndOfAThinStrip) {

@@ -47,6 +47,7 @@ struct SceneReading {
   /// The camera of an unorganized PCD (its points are put back on this pixel grid); nothing: the
   /// pinhole that fits its points (fitPinhole), and a clear refusal when none does.
   std::optional<Intrinsics> intrinsics;
+  std::string intrinsics_origin;  ///< where `intrinsics` came from (a file), for messages
   /// How a PCD's pixels are joined into a mesh.
   OrganizedMeshConfig meshing;
 };

@@ -79,7 +79,8 @@ VertexTriangles vertexTriangles(const TriangleMesh& mesh);
 struct TangentNeighbours {
   float radius_m = 0.0f;
   int bins = 0;
-  /// Per scene vertex: 1 if its neighbours were looked up (it is one of the queries).
+  /// Per scene vertex: 0 not among the vertices, 1 among them (a neighbour others can find),
+  /// 2 also looked up (one of the queries: its neighbours are listed).
   std::vector<std::uint8_t> indexed;
   /// Vertex v's neighbours are neighbours[offsets[v] .. offsets[v+1]).
   std::vector<std::size_t> offsets;
@@ -97,9 +98,10 @@ TangentNeighbours tangentNeighbours(const TriangleMesh& mesh,
                                     float radius_m = 0.01f, int bins = 8,
                                     const std::vector<std::int32_t>* queries = nullptr);
 
-/// The vertices smoothness averages over: all of a segment's up to 4,000, and 4,000 of a larger
-/// one's, every k-th in index (its entropy at each is exact; the mean of 4,000 is within a small
-/// fraction of the whole's on a dense single view, at a tenth of the look-ups).
+/// The vertices smoothness averages over: all of a segment's up to 4,000; of a larger one's, every
+/// k-th in index, k = ceil(n / 4,000), so 2,001 to 4,000 of them (the entropy at each is exact, with
+/// all of the segment's neighbours; their mean is within a small fraction of the whole's on a dense
+/// single view, at a tenth of the look-ups). Symmetry samples its vertices the same way.
 std::vector<std::int32_t> smoothnessSample(const std::vector<std::int32_t>& vertices);
 
 /// What the measures of many segments of one scene share, built once; read-only, so any number

@@ -21,6 +21,9 @@ struct SourceOptions {
   std::optional<capture::LiveRecording> record;
 };
 
+/// Whether a <source> is a sensor: `live`, `live:<uri>` or a virtual sensor (`virtual:...`).
+bool isLiveSource(const std::string& spec);
+
 /// Opens a <source> as the command line names it:
 ///   X.oni                          an OpenNI2 recording (replayed through OpenNI2)
 ///   a folder                       TUM RGB-D or 7-Scenes layout (a folder objscan synth wrote too)
