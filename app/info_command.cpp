@@ -13,6 +13,7 @@
 #include "objscan/capture/openni.h"
 #include "objscan/capture/tum_folder.h"
 #include "objscan/core/error.h"
+#include "objscan/core/file_names.h"
 #include "objscan/core/ply_io.h"
 #include "objscan/core/progress.h"
 #include "objscan/core/trajectory.h"
@@ -236,9 +237,7 @@ void runInfo(const fs::path& path) {
   if (status.type() != fs::file_type::regular) throw InputError(path, "is not a regular file");
   if (fs::file_size(path, ec) == 0) throw InputError(path, "the file is empty");
 
-  std::string ext = path.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(),
-                 [](unsigned char c) { return std::tolower(c); });
+  const std::string ext = lowercaseExtension(path);
   if (startsWith(path, "ply") || ext == ".ply") {
     describeMesh(path);
   } else if (ext == ".oni") {

@@ -1,7 +1,6 @@
 #include "objscan/discovery/scenes.h"
 
 #include <algorithm>
-#include <cctype>
 #include <cstdlib>
 #include <map>
 #include <set>
@@ -10,6 +9,7 @@
 
 #include "objscan/core/clock.h"
 #include "objscan/core/error.h"
+#include "objscan/core/file_names.h"
 #include "objscan/core/log.h"
 #include "objscan/core/ply_io.h"
 #include "objscan/core/progress.h"
@@ -215,12 +215,7 @@ void rankAll(SceneDiscovery& run, const ObjectnessModel& scorer, double max_iou)
                    });
 }
 
-bool isPcd(const fs::path& path) {
-  std::string ext = path.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(),
-                 [](unsigned char c) { return std::tolower(c); });
-  return ext == ".pcd";
-}
+bool isPcd(const fs::path& path) { return lowercaseExtension(path) == ".pcd"; }
 
 /// Object ids of a mesh's vertices (object parts, as meshOrganized gives them) with each object's
 /// parts merged.
