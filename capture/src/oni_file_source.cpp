@@ -23,6 +23,7 @@
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/error.h"
 #include "objscan/core/trajectory.h"
+#include "openni_path.h"
 #include "openni_runtime.h"
 
 namespace objscan::capture {
@@ -90,7 +91,8 @@ class OniFileSource final : public FrameSource {
     // OpenNI2 hands out one device per URI: a second replay of the same file in this process
     // would share (and disturb) the first one's player.
     claim_ = std::make_unique<FileClaim>(fs::absolute(file));
-    if (device_.open(file.c_str()) != openni::STATUS_OK) {
+    openni_path_ = OpenNIPath(file, "recording.oni");
+    if (device_.open(openni_path_.path().c_str()) != openni::STATUS_OK) {
       throw InputError(file, "OpenNI2's file player cannot open it: " + lastError());
     }
     openni::PlaybackControl* playback = device_.getPlaybackControl();
@@ -239,6 +241,7 @@ class OniFileSource final : public FrameSource {
   FrameSelection selection_;
   SourceInfo info_;
   double time_offset_s_ = 0.0;
+  OpenNIPath openni_path_;  ///< before device_: the alias outlives the device that reads it
   openni::Device device_;
   openni::VideoStream depth_;
   openni::VideoStream color_;

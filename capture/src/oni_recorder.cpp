@@ -39,10 +39,20 @@ using Clock = std::chrono::steady_clock;
 
 constexpr auto kRecorderStartTimeout = std::chrono::seconds(5);
 
+/// ".<name>.partial-<pid>" beside `out`; a plain ASCII name when OpenNI2 could not take `out`'s
+/// own name (openni_path.h).
 fs::path temporaryName(const fs::path& out) {
+  const std::string pid = std::to_string(::getpid());
   std::string name = ".";
-  name.append(out.filename().string()).append(".partial-").append(std::to_string(::getpid()));
+  name.append(out.filename().string()).append(".partial-").append(pid);
+  if (!openNICanTake(name)) name = std::string(".objscan-recording.partial-").append(pid);
   return out.parent_path() / name;
+}
+
+/// The folder the recording is written in, as OpenNI2 can take it (with the file's name).
+OpenNIPath recorderFolder(const fs::path& temp) {
+  const fs::path parent = temp.parent_path().empty() ? fs::path(".") : temp.parent_path();
+  return OpenNIPath(parent, "folder", 1 + temp.filename().string().size());
 }
 
 /// Bytes still writable to `file`: free disk space minus the reserve, and the process's file
@@ -125,7 +135,9 @@ OniRecorder::OniRecorder(const Options& options, openni::VideoStream& depth,
                                     (color != nullptr ? 5 : 2);
   // Room for about a second of frames still queued in the recorder plus its closing records.
   margin_bytes_ = 40 * frame_bytes + (1u << 20);
-  if (recorder_.create(temp_.c_str()) != openni::STATUS_OK) {
+  folder_alias_ = recorderFolder(temp_);
+  const std::string openni_temp = folder_alias_.path() + "/" + temp_.filename().string();
+  if (recorder_.create(openni_temp.c_str()) != openni::STATUS_OK) {
     std::error_code ec;
     fs::remove(temp_, ec);
     throw OutputError(options_.out, "cannot create the recording: " + lastError());

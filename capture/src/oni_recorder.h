@@ -18,6 +18,7 @@
 #include "objscan/capture/openni.h"
 #include "objscan/core/intrinsics.h"
 #include "objscan/core/trajectory.h"
+#include "openni_path.h"
 #include "openni_runtime.h"
 
 namespace objscan::capture::openni_detail {
@@ -107,6 +108,7 @@ class OniRecorder {
 
   Options options_;
   std::filesystem::path temp_;
+  OpenNIPath folder_alias_;  ///< temp_'s folder as OpenNI2 can take it, while it writes there
   openni::VideoStream& depth_;
   openni::VideoStream* color_;
   std::uint64_t margin_bytes_ = 0;

@@ -34,8 +34,9 @@ RecordSummary recordSession(const RecordOptions& options, const std::atomic<bool
     throw std::invalid_argument("--frames must be at least 1");
   }
 
+  OpenNIPath alias;  // declared before the device: outlives it
   openni::Device device;
-  openDevice(device, options.device_uri);
+  openDevice(device, options.device_uri, &alias);
   const std::string uri = device.getDeviceInfo().getUri();
   openni::VideoStream depth;
   openni::VideoStream color;
@@ -44,7 +45,7 @@ RecordSummary recordSession(const RecordOptions& options, const std::atomic<bool
 
   const LiveSensorFacts live = liveSensorFacts(device, depth);
   RecordingFacts facts;
-  facts.device_uri = uri;
+  facts.device_uri = alias.aliased() ? options.device_uri : uri;
   facts.intrinsics = live.intrinsics;
   facts.intrinsics_origin = live.intrinsics_origin;
   facts.time_offset_s = live.time_offset_s;

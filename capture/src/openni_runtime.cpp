@@ -86,8 +86,9 @@ std::vector<SensorDescription> listSensorsInternal() {
   return result;
 }
 
-void openDevice(openni::Device& device, const std::string& uri) {
+void openDevice(openni::Device& device, const std::string& given_uri, OpenNIPath* alias) {
   ensureOpenNI();
+  const std::string uri = given_uri.empty() ? given_uri : openNIUri(given_uri, alias);
   if (uri.empty()) {
     if (listSensorsInternal().empty()) {
       throw NoSensorError(
@@ -102,7 +103,7 @@ void openDevice(openni::Device& device, const std::string& uri) {
     return;
   }
   if (device.open(uri.c_str()) != openni::STATUS_OK) {
-    throw InputError(uri, "cannot open this sensor: " + lastError());
+    throw InputError(given_uri, "cannot open this sensor: " + lastError());
   }
   forgetDisconnect(uri);
 }

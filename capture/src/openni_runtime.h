@@ -12,6 +12,7 @@
 
 #include "objscan/capture/openni.h"
 #include "objscan/core/intrinsics.h"
+#include "openni_path.h"
 
 namespace objscan::capture::openni_detail {
 
@@ -22,9 +23,11 @@ std::string lastError();
 
 std::vector<SensorDescription> listSensorsInternal();
 
-/// Opens `uri` (empty: the first sensor). Throws NoSensorError when no sensor is attached,
-/// InputError when `uri` cannot be opened, std::runtime_error when the first sensor cannot.
-void openDevice(openni::Device& device, const std::string& uri);
+/// Opens `uri` (empty: the first sensor), through an alias kept in `*alias` where OpenNI2 cannot
+/// take the path a virtual sensor's URI names (openni_path.h); `*alias` must outlive the device.
+/// Throws NoSensorError when no sensor is attached, InputError when `uri` cannot be opened,
+/// std::runtime_error when the first sensor cannot.
+void openDevice(openni::Device& device, const std::string& uri, OpenNIPath* alias);
 
 /// Creates depth (required) and colour (when the device has it) streams at 640x480@30 where
 /// offered, mirroring off, registration and frame sync on. Throws std::runtime_error.

@@ -13,6 +13,7 @@
 #include "objscan/core/error.h"
 #include "objscan/core/log.h"
 #include "oni_recorder.h"
+#include "openni_path.h"
 #include "openni_runtime.h"
 
 namespace objscan::capture {
@@ -31,7 +32,7 @@ class Sensor {
   Sensor(const std::string& uri, const std::optional<Intrinsics>& intrinsics_override,
          const std::string& intrinsics_origin, const std::optional<LiveRecording>& record) {
     if (record) checkRecordingTarget(record->out);  // before the sensor starts anything
-    openDevice(device_, uri);
+    openDevice(device_, uri, &uri_alias_);
     uri_ = device_.getDeviceInfo().getUri();
     createLiveStreams(device_, depth_, color_, &has_color_);
     const LiveSensorFacts facts = liveSensorFacts(device_, depth_);
@@ -46,10 +47,11 @@ class Sensor {
     }
     requireIntrinsicsFit(depth_, info_, uri_);
     info_.live = true;
-    info_.description =
-        std::string("sensor ") + device_.getDeviceInfo().getName() + " (" + uri_ + ")";
+    info_.description = std::string("sensor ") + device_.getDeviceInfo().getName() + " (" +
+                        (uri_alias_.aliased() ? uri : uri_) + ")";
     if (record) {
-      facts_ = {info_.intrinsics, info_.intrinsics_origin, time_offset_s_, uri_,
+      facts_ = {info_.intrinsics, info_.intrinsics_origin, time_offset_s_,
+                uri_alias_.aliased() ? uri : uri_,
                 record->ground_truth};
       OniRecorder::Options options;
       options.out = record->out;
@@ -112,11 +114,11 @@ class Sensor {
         if (waited != openni::STATUS_OK && wasDisconnected(uri_)) break;
       }
       if (waited != openni::STATUS_OK) {
-        if (limit_) {
-          // A virtual sensor whose source has ended, or that was unplugged: either way the stream
-          // ends (finishRecording tells them apart). Its frame count is not reached when the
+        if (limit_ && !wasDisconnected(uri_)) {
+          // A virtual sensor whose source has ended. Its frame count is not reached when the
           // reader was slower than the sensor's 30 Hz: OpenNI2 then keeps only the newest frame.
-          if (!wasDisconnected(uri_)) reached_end_ = true;
+          // An unplugged one is lost like any sensor, recording or not.
+          reached_end_ = true;
           return FrameResult::end();
         }
         lost_ = true;
@@ -191,6 +193,7 @@ class Sensor {
 
   std::string uri_;
   SourceInfo info_;
+  OpenNIPath uri_alias_;  ///< before device_: a virtual sensor's source outlives the device
   openni::Device device_;
   openni::VideoStream depth_;
   openni::VideoStream color_;

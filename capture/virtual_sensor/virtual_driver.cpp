@@ -494,6 +494,17 @@ void VirtualStream::deliver(const void* pixels, int bytes, int width, int height
   getServices().releaseFrame(frame);
 }
 
+/// OpenNI2 keeps a device URI in 256 bytes and crashes on bytes outside printable ASCII (see
+/// capture/src/openni_path.h): such a URI is never announced.
+bool uriFitsOpenNI(const char* uri) {
+  std::size_t n = 0;
+  for (; uri[n] != '\0'; ++n) {
+    const auto byte = static_cast<unsigned char>(uri[n]);
+    if (byte < 0x20 || byte > 0x7e || n >= ONI_MAX_STR - 1) return false;
+  }
+  return true;
+}
+
 class VirtualDriver : public oni::driver::DriverBase {
  public:
   explicit VirtualDriver(OniDriverServices* services) : DriverBase(services) {}
@@ -506,13 +517,21 @@ class VirtualDriver : public oni::driver::DriverBase {
     if (status != ONI_STATUS_OK) return status;
     if (const char* uri = std::getenv(objscan::capture::kVirtualSensorEnv);
         uri != nullptr && objscan::capture::isVirtualSensorUri(uri)) {
-      announce(uri);
+      if (uriFitsOpenNI(uri)) {
+        announce(uri);
+      } else {
+        getServices().errorLoggerAppend(
+            "%s is not announced: OpenNI2 takes only printable ASCII URIs under 256 bytes",
+            objscan::capture::kVirtualSensorEnv);
+      }
     }
     return ONI_STATUS_OK;
   }
 
   OniStatus tryDevice(const char* uri) override {
-    if (uri == nullptr || !objscan::capture::isVirtualSensorUri(uri)) return ONI_STATUS_ERROR;
+    if (uri == nullptr || !objscan::capture::isVirtualSensorUri(uri) || !uriFitsOpenNI(uri)) {
+      return ONI_STATUS_ERROR;
+    }
     try {
       objscan::capture::parseVirtualSensorUri(uri);
     } catch (const std::exception& e) {

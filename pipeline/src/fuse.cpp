@@ -159,10 +159,15 @@ FusedScene fuseSource(const FuseOptions& options, const FuseLimits& limits) {
                                                     : out.stopped_by.empty() ? "end of source"
                                                                              : out.stopped_by);
   if (options.record) out.recording_file = options.record->out;
-  if (out.recording && out.recording->failed && out.sensor_lost.empty()) {
-    // An unplugged virtual sensor or a nearly full disk ends the stream without an exception.
-    out.sensor_lost =
-        out.recording_file.string() + ": recording stopped early: " + out.recording->stop_reason;
+  if (out.recording && out.recording->failed) {
+    if (out.sensor_lost.empty()) {
+      // A nearly full disk ends the stream without an exception.
+      out.sensor_lost =
+          out.recording_file.string() + ": recording stopped early: " + out.recording->stop_reason;
+    } else {
+      out.sensor_lost += "; " + out.recording_file.string() + " holds the " +
+                         std::to_string(out.recording->depth_frames) + " frames recorded before it";
+    }
   }
   if ((!fusion || fusion->trajectory().empty()) && !out.sensor_lost.empty()) {
     throw std::runtime_error(out.sensor_lost);

@@ -371,7 +371,16 @@ TEST_F(OpenNI, UnpluggedSensorEndsTheLiveStreamAndLeavesAReplayableRecording) {
   LiveRecording record;
   record.out = oni;
   auto live = openSensor("virtual:" + folder().string() + "?fps=20&unplug_after=7", {}, {}, record);
-  const std::vector<RgbdFrame> returned = readAll(*live);
+  // An unplugged sensor throws after its last frame, as FrameSource documents, virtual or not.
+  std::vector<RgbdFrame> returned;
+  try {
+    for (FrameResult r = live->next(); r.status == FrameStatus::kOk; r = live->next()) {
+      returned.push_back(std::move(r.frame));
+    }
+    ADD_FAILURE() << "the stream ended without saying the sensor was lost";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("unplugged"), std::string::npos) << e.what();
+  }
   EXPECT_EQ(returned.size(), 7u);
   const RecordSummary summary = *finishRecording(*live, "finished by the test");
   EXPECT_TRUE(summary.failed);
@@ -522,6 +531,71 @@ TEST_F(OpenNI, UnpluggedSensorEndsTheRecordingWithAClearErrorAndAReplayableFile)
   EXPECT_NE(r.err.find("the 7 frames before it are in"), std::string::npos) << r.err;
   auto replay = openOniFile(oni);
   expectSameFrames(folderFrames(), readAll(*replay), 7);
+}
+
+TEST_F(OpenNI, ASensorUnpluggedWhileFusingWithoutRecordingIsExit1AfterEveryOutput) {
+  // Issue 18, defect 2: without --record the loss was silent and the exit 0.
+  const fs::path out = out_.path() / "fused";
+  const ProcessResult r =
+      runProcess({OBJSCAN_EXE, "fuse", "virtual:" + folder().string() + "?fps=20&unplug_after=7",
+                  "--out", out.string()},
+                 {});
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  ASSERT_EQ(errorLines(r.err), 1u) << r.err;
+  EXPECT_NE(r.err.find("unplugged"), std::string::npos) << r.err;
+  EXPECT_TRUE(fs::exists(out / "mesh.ply"));
+  const Trajectory fused = readTumTrajectory(out / "trajectory.txt");
+  EXPECT_GE(fused.size(), 1u);
+  EXPECT_LE(fused.size(), 7u);
+}
+
+/// Entries of `dir` whose name starts with "objscan-openni-" (OpenNI2 path aliases).
+std::size_t aliasesIn(const fs::path& dir) {
+  std::size_t n = 0;
+  for (const fs::directory_entry& e : fs::directory_iterator(dir)) {
+    n += e.path().filename().string().rfind("objscan-openni-", 0) == 0 ? 1 : 0;
+  }
+  return n;
+}
+
+TEST_F(OpenNI, PathsOpenNI2CannotTakeAreRecordedAndReplayedThroughAnAlias) {
+  // Issue 18, defect 1: "ü" anywhere in a path crashed libOpenNI2 (SIGSEGV), and a path of 256
+  // bytes or more failed late. Sensor source, recording and replay all take such paths.
+  TempDir tmp;  // $TMPDIR of the processes below and of this one: every alias is gone after
+  ASSERT_EQ(::setenv("TMPDIR", tmp.path().c_str(), 1), 0);
+  const fs::path odd = out_.path() / "d\xc3\xbcr \xc3\xbc";  // "dür ü"
+  fs::create_directories(odd);
+  fs::copy(folder(), odd / "source", fs::copy_options::recursive);
+  const std::string device = "virtual:" + (odd / "source").string() + "?fps=20";
+  const fs::path oni = odd / "\xc3\xbc.oni";
+  ProcessOptions options;
+  options.env = {"TMPDIR=" + tmp.path().string()};
+  const ProcessResult r = record(device, oni, options);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("24 depth, 24 colour"), std::string::npos) << r.out;
+  // The sidecar names the device as the user did, not the alias.
+  EXPECT_NE(objscan::testing::readBytes(fs::path(oni.string() + ".json")).find(odd.string()),
+            std::string::npos);
+
+  const ProcessResult info = runProcess({OBJSCAN_EXE, "info", oni.string()}, options);
+  EXPECT_EQ(info.exit_code, 0) << info.err;
+  EXPECT_NE(info.out.find("depth 160x120, 24 frames"), std::string::npos) << info.out;
+
+  // Over 255 bytes: a folder name of 240 characters inside the temporary folder.
+  const fs::path long_dir = out_.path() / std::string(240, 'a');
+  fs::create_directories(long_dir);
+  const fs::path long_oni = long_dir / "session.oni";
+  ASSERT_GT(long_oni.string().size(), 255u);
+  fs::copy_file(oni, long_oni);
+  fs::copy_file(fs::path(oni.string() + ".json"), fs::path(long_oni.string() + ".json"));
+  for (const fs::path& file : {oni, long_oni}) {
+    SCOPED_TRACE(file.string());
+    auto replay = openOniFile(file);
+    EXPECT_EQ(aliasesIn(tmp.path()), 1u);  // the alias lives as long as the replay
+    expectSameFrames(folderFrames(), readAll(*replay), kFolderFrames);
+  }
+  EXPECT_EQ(aliasesIn(tmp.path()), 0u);
+  ::unsetenv("TMPDIR");
 }
 
 class OpenNIStop : public OpenNI, public ::testing::WithParamInterface<int> {};
