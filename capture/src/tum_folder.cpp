@@ -11,6 +11,7 @@
 #include "image_files.h"
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/error.h"
+#include "objscan/core/log.h"
 
 namespace objscan::capture {
 namespace fs = std::filesystem;
@@ -169,6 +170,19 @@ void TumFolder::readAssociations(const fs::path& file) {
         throw InputError(file, where + "ground-truth pose " + e.what());
       }
     }
+  }
+  // Frames are fused, and their poses written, in time order: a list out of order (lines moved
+  // by hand, files joined) is sorted by depth time stamp, as TUM's own files are.
+  const auto by_depth_stamp = [](const TumFrameFiles& a, const TumFrameFiles& b) {
+    return a.depth_stamp_s < b.depth_stamp_s;
+  };
+  if (!std::is_sorted(frames_.begin(), frames_.end(), by_depth_stamp)) {
+    std::stable_sort(frames_.begin(), frames_.end(), by_depth_stamp);
+    std::stable_sort(gt.poses.begin(), gt.poses.end(),
+                     [](const StampedPose& a, const StampedPose& b) { return a.stamp_s < b.stamp_s; });
+    log::warning(file.string() +
+                 ": the frames are not listed in time order; they are used sorted by depth time "
+                 "stamp");
   }
   if (!gt.empty()) {
     ground_truth_ = std::move(gt);

@@ -126,6 +126,14 @@ void writeTumTrajectory(const std::filesystem::path& path, const Trajectory& tra
     out += ' ';
     out.append(buf, r.ptr);
   };
+  for (std::size_t i = 1; i < trajectory.poses.size(); ++i) {
+    if (trajectory.poses[i].stamp_s < trajectory.poses[i - 1].stamp_s) {
+      // readTumTrajectory (and the TUM tools) would refuse the file: never write one.
+      throw std::invalid_argument(path.string() + ": pose " + std::to_string(i + 1) +
+                                  " is earlier than the pose before; a trajectory is written in "
+                                  "time order");
+    }
+  }
   for (const StampedPose& sp : trajectory.poses) {
     std::snprintf(buf, sizeof buf, "%.6f", sp.stamp_s);
     out += buf;

@@ -76,6 +76,7 @@ FusedScene fuseSource(const FuseOptions& options, const FuseLimits& limits) {
     }
     ProgressBar progress(limits.progress_label, total);
     std::size_t read = 0;
+    std::optional<double> last_stamp_s;
     for (;;) {
       if (limits.stop && limits.stop->load()) {
         out.interrupted = true;
@@ -109,8 +110,16 @@ FusedScene fuseSource(const FuseOptions& options, const FuseLimits& limits) {
         ++out.bad_frames;
         continue;
       }
-      ++out.frames_read;
       RgbdFrame& frame = r.frame;
+      if (last_stamp_s && frame.stamp_s < *last_stamp_s) {
+        // A trajectory is in time order (its readers, ours and TUM's, refuse anything else).
+        log::warning("skipped frame " + std::to_string(frame.index) + ": its time stamp " +
+                     std::to_string(frame.stamp_s) + " s is earlier than the frame before");
+        ++out.bad_frames;
+        continue;
+      }
+      last_stamp_s = frame.stamp_s;
+      ++out.frames_read;
       if (options.no_color) frame.color_rgb.release();
       std::optional<Pose> pose;
       if (given) {

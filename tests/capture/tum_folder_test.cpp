@@ -5,6 +5,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "objscan/core/error.h"
+#include "objscan/core/trajectory.h"
 #include "test_support.h"
 
 namespace objscan::capture {
@@ -125,6 +126,31 @@ TEST(TumFolder, RgbFirstAssociationsAndUnsortedIndexFiles) {
     EXPECT_EQ(unsorted.frames()[i].rgb, "rgb/" + std::to_string(i) + ".png");
     EXPECT_EQ(unsorted.frames()[i].depth, "depth/" + std::to_string(i) + ".png");
   }
+}
+
+TEST(TumFolder, AssociationsOutOfTimeOrderAreUsedSorted) {
+  // Issue 18, defect 3: lines out of order were fused in file order into a trajectory that
+  // objscan's own readers then refused.
+  TempDir dir;
+  makeFolder(dir.path(), 3, {0.0, 0.0, 0.0});
+  writeBytes(dir / "associations.txt",
+             "100.066 depth/2.png 100.066 rgb/2.png 100.06 2 0 0 0 0 0 1\n"
+             "100.0 depth/0.png 100.0 rgb/0.png 100.0 0 0 0 0 0 0 1\n"
+             "100.033 depth/1.png 100.033 rgb/1.png 100.03 1 0 0 0 0 0 1\n");
+  const TumFolder folder(dir.path());
+  ASSERT_EQ(folder.size(), 3u);
+  ASSERT_TRUE(folder.groundTruth().has_value());
+  for (std::size_t i = 0; i < 3; ++i) {
+    EXPECT_EQ(folder.frames()[i].depth, "depth/" + std::to_string(i) + ".png");
+    EXPECT_FLOAT_EQ(folder.groundTruth()->poses[i].T_W_C.translation().x(), static_cast<float>(i));
+  }
+  // What fuse writes from them reads back.
+  Trajectory written;
+  for (std::size_t i = 0; i < 3; ++i) {
+    written.poses.push_back({folder.load(i).stamp_s, folder.groundTruth()->poses[i].T_W_C});
+  }
+  writeTumTrajectory(dir / "trajectory.txt", written);
+  EXPECT_EQ(readTumTrajectory(dir / "trajectory.txt").size(), 3u);
 }
 
 TEST(TumFolder, BadFoldersAndImagesAreInputErrors) {

@@ -40,6 +40,19 @@ TEST(Trajectory, TumRoundTripKeepsPosesAndMicrosecondStamps) {
   }
 }
 
+TEST(Trajectory, PosesOutOfTimeOrderAreNeverWritten) {
+  // The reader refuses stamps that go backwards; the writer refuses to make such a file.
+  TempDir dir;
+  Trajectory t;
+  t.poses.push_back({2.0, Pose::Identity()});
+  t.poses.push_back({1.0, Pose::Identity()});
+  EXPECT_THROW(writeTumTrajectory(dir / "t.txt", t), std::invalid_argument);
+  EXPECT_FALSE(std::filesystem::exists(dir / "t.txt"));
+  t.poses[1].stamp_s = 2.0;  // equal stamps read back, so they are written
+  writeTumTrajectory(dir / "t.txt", t);
+  EXPECT_EQ(readTumTrajectory(dir / "t.txt").size(), 2u);
+}
+
 TEST(Trajectory, ReadsCommentsBlankLinesCommasAndTumConvention) {
   TempDir dir;
   // A 90-degree turn about z: qz = qw = sqrt(0.5). The camera sits at (1, 2, 3).

@@ -42,7 +42,8 @@ StampedPose stampedPoseFromTum(const std::array<double, 8>& values);
 Trajectory readTumTrajectory(const std::filesystem::path& path);
 
 /// Writes the TUM format (time stamps with microsecond precision, the rest exact), atomically.
-/// Throws OutputError.
+/// Throws OutputError, or std::invalid_argument (nothing written) when the time stamps go
+/// backwards, which readTumTrajectory would refuse.
 void writeTumTrajectory(const std::filesystem::path& path, const Trajectory& trajectory);
 
 /// The pose nearest in time to stamp_s, if one lies within max_dt_s (poses in time order).
