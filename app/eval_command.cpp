@@ -292,7 +292,7 @@ int runEval(const EvalCommandOptions& options) {
   eval.ablation = options.ablation;
   eval.validate();
   const std::vector<std::unique_ptr<Category>> categories = parseCategories(options.categories);
-  prepareOutputFolder(options.out);
+  const OutputFolderLock lock = prepareOutputFolder(options.out);
   const SceneDiscovery set =
       labelledScenes(options.scenes, options.config, options.catalog, options.reading);
   const LabelledSegments segs = discovery::labelledSegments(set, options.config.max_iou);

@@ -76,11 +76,12 @@ void addFusionSettings(report::Settings& settings, const pipeline::FusedScene& f
 
 int runFuse(const FuseCommandOptions& options) {
   pipeline::FusedScene fused;
+  OutputFolderLock lock;
   {
     StopSignals signals;
     pipeline::FuseLimits limits;
     limits.stop = &StopSignals::flag();
-    limits.after_open = [&options] { prepareOutputFolder(options.out); };
+    limits.after_open = [&options, &lock] { lock = prepareOutputFolder(options.out); };
     fused = pipeline::fuseSource(options.fuse, limits);
   }
   writeFused(options.out, fused);

@@ -6,6 +6,7 @@
 #include "exit_codes.h"
 #include "objscan/core/error.h"
 #include "objscan/core/log.h"
+#include "objscan/core/output_folder.h"
 #include "objscan/core/ply_io.h"
 #include "objscan/render/snapshots.h"
 #include "objscan/report/report.h"
@@ -92,6 +93,9 @@ void printPictures(const char* label, const pipeline::PicturesOutcome& o, const 
 
 int runRender(const RenderCommandOptions& options) {
   options.pictures.validate();
+  // Held while the folder is read and written: a discover or scan into it waits its turn.
+  OutputFolderLock lock;
+  if (fs::is_directory(options.dir)) lock = OutputFolderLock(options.dir);
   report::ScanResults results = readForRendering(options.dir);
   pipeline::PicturesOutcome outcome;
   {

@@ -40,13 +40,15 @@ void removeStaleOutputs(const fs::path& out) {
 }
 
 /// Fails now, not after minutes of fusing, when OUT cannot take files (permissions, a read-only
-/// file system): creates and removes a probe file.
-void requireWritableFolder(const fs::path& out) {
-  prepareOutputFolder(out);
+/// file system: creates and removes a probe file) or another run is writing it; returns the
+/// folder's lock, held for the whole scan.
+OutputFolderLock requireWritableFolder(const fs::path& out) {
+  OutputFolderLock lock = prepareOutputFolder(out);
   if (const int error = probeWritableFolder(out); error != 0) {
     throw OutputError(out,
                       std::string("cannot write into the output folder: ") + std::strerror(error));
   }
+  return lock;
 }
 
 /// The ground truth to evaluate against, checked before any work; empty for none.
@@ -218,7 +220,7 @@ int runScan(ScanCommandOptions options) {
   options.pictures.validate();
   const fs::path truth = groundTruthOf(options);
   const discovery::SceneDiscoveryOptions library = sceneDiscoveryOptions(options.discover);
-  requireWritableFolder(options.out);
+  const OutputFolderLock lock = requireWritableFolder(options.out);
 
   StopSignals signals;
   ScanRun run(options);

@@ -2,6 +2,7 @@
 // known; bad input gives one error line and the documented exit code.
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -20,6 +21,7 @@
 #include "cli_expect.h"
 #include "objscan/capture/openni.h"
 #include "objscan/core/atomic_file.h"
+#include "objscan/core/output_folder.h"
 #include "objscan/core/ply_io.h"
 #include "objscan/core/trajectory.h"
 #include "objscan/discovery/labels.h"
@@ -140,6 +142,26 @@ TEST(DiscoverCli, RanksBothMoundsFirstAndWritesEachHypothesisMesh) {
     }
   }
   EXPECT_EQ(testing::entryCount(dir / "out" / "objects"), h.size());
+}
+
+TEST(DiscoverCli, AFolderAnotherRunIsWritingIsRefusedNamingItAndLeftAlone) {
+  // Issue 18, defect 5: two discover runs into one folder left 51 hypotheses with 48 files.
+  TempDir dir;
+  writePly(dir / "scene.ply", twoMounds());
+  const fs::path out = dir / "out";
+  const std::vector<std::string> discover = {"discover", (dir / "scene.ply").string(), "--out",
+                                             out.string(), "--no-catalog"};
+  ASSERT_EQ(objscan(discover).exit_code, 0);
+  const std::string before = readWholeFile(out / "hypotheses.json");
+  {
+    const OutputFolderLock held(out);  // this test process is "the other run"
+    const std::string holder = "another objscan run (process " + std::to_string(::getpid());
+    expectOneErrorLine(objscan(discover), 1, out.string() + ": " + holder);
+    expectOneErrorLine(objscan({"render", out.string()}), 1, holder);
+    EXPECT_EQ(readWholeFile(out / "hypotheses.json"), before);
+    EXPECT_FALSE(fs::exists(out / "renders"));
+  }
+  EXPECT_EQ(objscan(discover).exit_code, 0) << "free again once the other run ends";
 }
 
 TEST(DiscoverCli, PaperSegmentationLeavesTheTableUncut) {

@@ -29,6 +29,14 @@ class OutputError : public std::runtime_error {
       : std::runtime_error(path.string() + ": " + problem) {}
 };
 
+/// Another run (another process, or another command of this one) is writing the results folder.
+/// The message names the folder and the process holding it. The command line maps it to exit
+/// code 1 (runtime failure): nothing is wrong with the input, and the same command works later.
+class FolderBusyError : public OutputError {
+ public:
+  using OutputError::OutputError;
+};
+
 /// Live capture was asked of "the first sensor", but OpenNI2 finds none attached. The message says
 /// what to connect or name instead. The command line maps it to exit code 3 (no sensor).
 /// A device URI that names no device is an InputError instead.

@@ -10,16 +10,30 @@
 /// final name and swapped in whole, so a folder never mixes two runs' files.
 namespace objscan {
 
-/// Creates `out` (and its parents) if needed; throws OutputError naming it when it cannot be a
-/// folder (no permission, a file in the way).
-inline void prepareOutputFolder(const std::filesystem::path& out) {
-  std::error_code ec;
-  std::filesystem::create_directories(out, ec);
-  if (ec || !std::filesystem::is_directory(out)) {
-    throw OutputError(out, "cannot create the output folder" +
-                               (ec ? ": " + ec.message() : std::string(" (a file is in the way)")));
-  }
-}
+/// One run's hold on a results folder: an exclusive lock (flock) on the folder itself, so that
+/// nothing is left in it. Released when the object goes or the process ends, however it ends.
+class OutputFolderLock {
+ public:
+  OutputFolderLock() = default;
+  /// Takes the lock of the existing folder `out`. Throws FolderBusyError naming the process
+  /// that holds it (from /proc/locks), OutputError when the folder cannot be opened.
+  explicit OutputFolderLock(const std::filesystem::path& out);
+  ~OutputFolderLock();
+  OutputFolderLock(OutputFolderLock&& other) noexcept : fd_(other.fd_) { other.fd_ = -1; }
+  OutputFolderLock& operator=(OutputFolderLock&& other) noexcept;
+  OutputFolderLock(const OutputFolderLock&) = delete;
+  OutputFolderLock& operator=(const OutputFolderLock&) = delete;
+
+  bool held() const { return fd_ >= 0; }
+
+ private:
+  int fd_ = -1;
+};
+
+/// Creates `out` (and its parents) if needed and locks it for this run (OutputFolderLock), so
+/// that two runs never write one folder. Throws OutputError naming it when it cannot be a folder
+/// (no permission, a file in the way), FolderBusyError when another run holds it.
+[[nodiscard]] OutputFolderLock prepareOutputFolder(const std::filesystem::path& out);
 
 /// Creates OUT/NAME.partial empty (removing what an interrupted run left there) and returns it.
 /// Outputs that are folders are written there and moved into place by swapInFolder.
