@@ -22,7 +22,7 @@ discovery::SceneDiscoveryOptions sceneDiscoveryOptions(const DiscoverCommandOpti
 
 report::Hypotheses writeDiscoveryResults(const DiscoverCommandOptions& options,
                                          const discovery::SceneDiscovery& run) {
-  report::Hypotheses hypotheses = report::hypothesesFrom(run, options.model.string());
+  report::Hypotheses hypotheses = report::hypothesesFrom(run, options.model.string(), options.out);
   report::writeDiscovery(options.out, hypotheses, run);
   return hypotheses;
 }
@@ -83,7 +83,7 @@ int runDiscover(const DiscoverCommandOptions& options) {
     }
   }
   // Once every scene has been read: a scene that cannot be leaves no output folder behind.
-  prepareOutputFolder(options.out);
+  const OutputFolderLock lock = prepareOutputFolder(options.out);
   const discovery::SceneDiscovery run = discovery::discoverScenes(std::move(scenes), library);
   writeDiscoveryResults(options, run);
   report::Settings settings = options.settings;

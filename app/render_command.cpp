@@ -19,20 +19,28 @@ namespace {
 namespace fs = std::filesystem;
 
 /// The scene mesh hypotheses.json was made from: the folder's own mesh.ply (scan writes it there),
-/// else the path discover noted, as given or relative to the folder.
+/// else the path discover noted relative to the folder, else its absolute path (the folder moved
+/// without its scene), else (a folder from before paths were relative) the path as it was given,
+/// from the working directory.
 fs::path sceneMeshOf(const fs::path& dir, const report::SceneRecord& scene) {
-  fs::path mesh = dir / report::kMeshFile;
-  if (!fs::exists(mesh)) {
-    mesh = scene.mesh;
-    if (!fs::exists(mesh) && mesh.is_relative()) mesh = dir / scene.mesh;
+  std::vector<fs::path> tried = {dir / report::kMeshFile};
+  const fs::path noted(scene.mesh);
+  tried.push_back(noted.is_relative() ? dir / noted : noted);
+  if (!scene.mesh_absolute.empty()) {
+    tried.emplace_back(scene.mesh_absolute);
+  } else if (noted.is_relative()) {
+    tried.push_back(noted);
   }
-  if (!fs::exists(mesh)) {
-    throw InputError(dir / report::kMeshFile,
-                     "missing: render needs the scene mesh hypotheses.json was made from (mesh.ply "
-                     "in the results folder, or " +
-                         mesh.string() + ")");
+  std::error_code ec;
+  for (const fs::path& mesh : tried) {
+    if (fs::is_regular_file(mesh, ec)) return mesh;
   }
-  return mesh;
+  std::string list;
+  for (std::size_t i = 1; i < tried.size(); ++i) list += (i > 1 ? " or " : "") + tried[i].string();
+  throw InputError(dir / report::kMeshFile,
+                   "missing: render needs the scene mesh hypotheses.json was made from (mesh.ply "
+                   "in the results folder, or " +
+                       list + ")");
 }
 
 /// The folder's results with the scene mesh the hypotheses were cut from, checked to be it.

@@ -104,13 +104,33 @@ std::optional<CatalogUse> catalogUseOf(const discovery::SceneDiscovery& run) {
   return CatalogUse{run.catalog->string(), run.catalog_scenes, run.catalog_segments};
 }
 
-Hypotheses hypothesesFrom(const discovery::SceneDiscovery& run, const std::string& model) {
+namespace {
+
+/// `name` relative to `results_dir` and absolute when it names a file; as it is otherwise.
+std::pair<std::string, std::string> sceneReference(const std::string& name,
+                                                   const fs::path& results_dir) {
+  std::error_code ec;
+  if (!fs::is_regular_file(name, ec)) return {name, {}};
+  const fs::path absolute = fs::absolute(name, ec).lexically_normal();
+  if (ec) return {name, {}};
+  const fs::path relative =
+      absolute.lexically_relative(fs::absolute(results_dir, ec).lexically_normal());
+  if (ec || relative.empty()) return {absolute.string(), absolute.string()};
+  return {relative.string(), absolute.string()};
+}
+
+}  // namespace
+
+Hypotheses hypothesesFrom(const discovery::SceneDiscovery& run, const std::string& model,
+                          const fs::path& results_dir) {
   Hypotheses out;
+  std::vector<std::string> names;  // each scene's "mesh", for its hypotheses' "scene"
   out.scoring = Scoring{discovery::toString(run.scorer), model, run.normalised_over};
   out.catalog = catalogUseOf(run);
   for (const discovery::DiscoveredScene& scene : run.scenes) {
     SceneRecord r;
-    r.mesh = scene.name;
+    std::tie(r.mesh, r.mesh_absolute) = sceneReference(scene.name, results_dir);
+    names.push_back(r.mesh);
     r.vertices = scene.mesh.positions.size();
     r.faces = scene.mesh.triangles.size();
     r.candidates = scene.candidates.segments.size();
@@ -133,7 +153,7 @@ Hypotheses hypothesesFrom(const discovery::SceneDiscovery& run, const std::strin
     HypothesisRecord r;
     r.rank = i + 1;
     r.score = h.score;
-    r.scene = scene.name;
+    r.scene = names[run.ranked[i].scene];
     r.measures = h.measures;
     r.box = boxOf(scene.mesh, h.segment);
     r.scale = h.segment.scale;
@@ -173,6 +193,7 @@ void writeHypotheses(const fs::path& file, const Hypotheses& hyp) {
   Json scenes = Json::array();
   for (const SceneRecord& s : hyp.scenes) {
     Json j = {{"mesh", s.mesh}, {"from_catalog", s.from_catalog}};
+    if (!s.mesh_absolute.empty()) j["mesh_absolute"] = s.mesh_absolute;
     if (s.vertices) j["vertices"] = *s.vertices;
     if (s.faces) j["faces"] = *s.faces;
     if (s.candidates) j["candidates"] = *s.candidates;
@@ -235,6 +256,7 @@ Hypotheses readHypotheses(const fs::path& file) {
   for (const Node& s : top.objects("scenes")) {
     SceneRecord r;
     r.mesh = s.require("mesh", s.string("mesh"));
+    r.mesh_absolute = s.string("mesh_absolute").value_or("");
     r.vertices = s.count("vertices");
     r.faces = s.count("faces");
     r.candidates = s.count("candidates");
@@ -276,6 +298,15 @@ Hypotheses readHypotheses(const fs::path& file) {
     r.vertex_count = h.count("vertex_count");
     r.file = h.string("file").value_or("");
     out.hypotheses.push_back(std::move(r));
+  }
+  for (std::size_t i = 0; i < out.hypotheses.size(); ++i) {
+    const std::string& scene = out.hypotheses[i].scene;
+    const bool listed = std::any_of(out.scenes.begin(), out.scenes.end(),
+                                    [&](const SceneRecord& s) { return s.mesh == scene; });
+    if (!listed) {
+      top.fail("hypotheses[" + std::to_string(i) + "].scene",
+               "names a scene that \"scenes\" does not list");
+    }
   }
   std::stable_sort(
       out.hypotheses.begin(), out.hypotheses.end(),

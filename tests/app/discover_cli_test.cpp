@@ -115,7 +115,8 @@ TEST(DiscoverCli, RanksBothMoundsFirstAndWritesEachHypothesisMesh) {
     if (i > 0) {
       EXPECT_GE(h[i - 1]["score"].get<double>(), h[i]["score"].get<double>());
     }
-    EXPECT_EQ(h[i]["scene"], (dir / "scene.ply").string());
+    // The scene relative to the results folder, and absolute beside it.
+    EXPECT_EQ(h[i]["scene"], "../scene.ply");
     for (const char* m : {"compactness", "symmetry", "smoothness", "local_convexity",
                           "global_convexity", "recurrence"}) {
       EXPECT_TRUE(h[i]["measures"].contains(m)) << m;
@@ -142,6 +143,38 @@ TEST(DiscoverCli, RanksBothMoundsFirstAndWritesEachHypothesisMesh) {
     }
   }
   EXPECT_EQ(testing::entryCount(dir / "out" / "objects"), h.size());
+  EXPECT_EQ(doc["scenes"][0]["mesh"], "../scene.ply");
+  EXPECT_EQ(doc["scenes"][0]["mesh_absolute"], fs::absolute(dir / "scene.ply").string());
+}
+
+TEST(DiscoverCli, RenderFindsTheSceneFromAnyWorkingDirectoryAndAfterAMove) {
+  // Issue 18, defect 6: hypotheses.json kept the scene's path as typed, so render worked only
+  // from the directory discover ran in.
+  TempDir dir;
+  fs::create_directories(dir / "work" / "scenes");
+  writePly(dir / "work" / "scenes" / "scene.ply", twoMounds());
+  testing::ProcessOptions in_work;
+  in_work.cwd = dir / "work";
+  ASSERT_EQ(testing::runProcess({OBJSCAN_EXE, "discover", "--min-size", "200", "scenes/scene.ply",
+                                 "--out", "results", "--no-catalog"},
+                                in_work)
+                .exit_code,
+            0);
+  const nlohmann::json doc = readJson(dir / "work" / "results" / "hypotheses.json");
+  EXPECT_EQ(doc["scenes"][0]["mesh"], "../scenes/scene.ply");
+  // From elsewhere.
+  EXPECT_EQ(objscan({"render", (dir / "work" / "results").string()}).exit_code, 0);
+  // The folder and its scene moved together: the relative path holds.
+  fs::rename(dir / "work", dir / "moved");
+  EXPECT_EQ(objscan({"render", (dir / "moved" / "results").string()}).exit_code, 0);
+  // The results folder moved alone: the absolute path finds the scene.
+  fs::rename(dir / "moved" / "results", dir / "results");
+  fs::rename(dir / "moved", dir / "work");
+  EXPECT_EQ(objscan({"render", (dir / "results").string()}).exit_code, 0);
+  // Neither: one error line naming both places.
+  fs::remove(dir / "work" / "scenes" / "scene.ply");
+  expectOneErrorLine(objscan({"render", (dir / "results").string()}), 2,
+                     "../scenes/scene.ply or " + (dir / "work" / "scenes" / "scene.ply").string());
 }
 
 TEST(DiscoverCli, AFolderAnotherRunIsWritingIsRefusedNamingItAndLeftAlone) {
@@ -219,7 +252,7 @@ TEST(DiscoverCli, TheCatalogServesARepeatedSceneAndGivesRecurrence) {
   // Scene a's hypotheses are the same sets of vertices; now each mound has b's to recur with.
   std::size_t from_a = 0, with_recurrence = 0;
   for (const nlohmann::json& h : two["hypotheses"]) {
-    if (h["scene"] != (dir / "a.ply").string()) continue;
+    if (h["scene"] != "../a.ply") continue;
     ++from_a;
     with_recurrence += !h["measures"]["recurrence"].is_null();
   }

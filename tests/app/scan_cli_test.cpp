@@ -243,6 +243,7 @@ TEST_F(ScanCli, RenderNamesWhatIsMissing) {
   fs::create_directories(no_mesh);
   nlohmann::json doc = readJson(out_ / "hypotheses.json");
   doc["scenes"][0]["mesh"] = (no_mesh / "gone.ply").string();
+  doc["scenes"][0]["mesh_absolute"] = (no_mesh / "gone.ply").string();
   for (auto& h : doc["hypotheses"]) h["scene"] = (no_mesh / "gone.ply").string();
   writeFileAtomically(no_mesh / "hypotheses.json", doc.dump());
   expectOneErrorLine(objscan({"render", no_mesh.string()}), 2,
@@ -264,6 +265,14 @@ TEST_F(ScanCli, RenderNamesWhatIsMissing) {
                      (bad_dir / "hypotheses.json").string() + ": hypothesis 3 names vertex");
   EXPECT_EQ(testing::entryCount(bad_dir), 2u);  // no renders/, no renders.partial/
 
+  // A hypothesis of a scene the file does not list (issue 18: render painted nothing, exit 0).
+  nlohmann::json stray = readJson(out_ / "hypotheses.json");
+  stray["hypotheses"][1]["scene"] = "elsewhere.ply";
+  writeFileAtomically(bad_dir / "hypotheses.json", stray.dump());
+  expectOneErrorLine(objscan({"render", bad_dir.string()}), 2,
+                     (bad_dir / "hypotheses.json").string() +
+                         ": \"hypotheses[1].scene\" names a scene that \"scenes\" does not list");
+
   // Truncated JSON.
   writeFileAtomically(no_mesh / "hypotheses.json", doc.dump().substr(0, 100));
   expectOneErrorLine(objscan({"render", no_mesh.string()}), 2,
@@ -272,11 +281,17 @@ TEST_F(ScanCli, RenderNamesWhatIsMissing) {
   expectOneErrorLine(objscan({"render", out_.string(), "--size", "640-480"}), 2, "--size");
 }
 
-/// hypotheses.json's bytes with the scenes' stage timings (wall time, never the same twice) zeroed.
+/// hypotheses.json's bytes with the scenes' stage timings (wall time, never the same twice) zeroed
+/// and each scene named by its absolute path (folders in different places name the same mesh by
+/// different relative paths).
 std::string withoutTimings(const fs::path& file) {
   report::Hypotheses h = report::readHypotheses(file);
   for (report::SceneRecord& s : h.scenes) {
     if (s.findings) s.findings->timings_ms = {};
+    for (report::HypothesisRecord& r : h.hypotheses) {
+      if (r.scene == s.mesh) r.scene = s.mesh_absolute;
+    }
+    s.mesh = s.mesh_absolute;
   }
   const fs::path copy = file.parent_path() / "untimed.json";
   report::writeHypotheses(copy, h);

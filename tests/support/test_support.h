@@ -90,6 +90,7 @@ struct ProcessOptions {
   int signal = 0;                ///< e.g. SIGINT; 0 = none
   std::string signal_when;
   int signal_delay_ms = 0;
+  std::filesystem::path cwd;  ///< the child's working directory; empty = this process's
 };
 ProcessResult runProcess(const std::vector<std::string>& argv, const ProcessOptions& options);
 

@@ -58,7 +58,10 @@ struct SceneFindings {
 };
 
 struct SceneRecord {
-  std::string mesh;  ///< the mesh file as given to discovery
+  /// The scene's file relative to the results folder (so the folder can move with its scenes,
+  /// and be rendered from any working directory); as given to discovery when it names no file.
+  std::string mesh;
+  std::string mesh_absolute;  ///< the same file's absolute path; empty when it names no file
   std::optional<std::size_t> vertices, faces, candidates, hypotheses;
   bool from_catalog = false;
   std::optional<SceneFindings> findings;  ///< absent when the catalog supplied the candidates

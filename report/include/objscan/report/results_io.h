@@ -37,9 +37,11 @@ std::string rankFileName(std::size_t rank, const char* extension);
 /// without one.
 std::optional<CatalogUse> catalogUseOf(const discovery::SceneDiscovery& run);
 
-/// hypotheses.json's record of a discovery run; `model` is the model file scored with (empty for
-/// the average).
-Hypotheses hypothesesFrom(const discovery::SceneDiscovery& run, const std::string& model);
+/// hypotheses.json's record of a discovery run written into `results_dir`; `model` is the model
+/// file scored with (empty for the average). Scenes are named relative to `results_dir`, with
+/// their absolute path beside (SceneRecord).
+Hypotheses hypothesesFrom(const discovery::SceneDiscovery& run, const std::string& model,
+                          const std::filesystem::path& results_dir);
 
 /// Writes DIR/objects/rank_NNN.ply (each hypothesis's sub-mesh of run.scenes[...].mesh) staged,
 /// then DIR/hypotheses.json, then swaps objects/ in: a failure before the swap leaves the
