@@ -2,6 +2,7 @@
 // (README, "Exit codes"). Nothing else lives here.
 
 #include <CLI/CLI.hpp>
+#include <csignal>
 #include <cstdio>
 #include <stdexcept>
 #include <string>
@@ -79,6 +80,9 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Past a file-size limit (ulimit -f) a write then fails with EFBIG, which every writer reports
+  // and cleans up after as it does a full disk, instead of SIGXFSZ killing the process mid-file.
+  std::signal(SIGXFSZ, SIG_IGN);
   try {
     const int code = run(argc, argv);
     // Output piped to a full disk or a closed pipe must not look like success.

@@ -65,6 +65,21 @@ TEST(FuseCli, WritesAMeshAndATrajectoryThatReadBack) {
   EXPECT_EQ(files, (std::set<std::string>{"mesh.ply", "trajectory.txt", "settings.json"}));
 }
 
+TEST(FuseCli, AFileSizeLimitIsOneErrorLineAndLeavesNoTemporaryFile) {
+  // Issue 18, defect 7: under `ulimit -f` SIGXFSZ killed fuse (exit 153, no message) and left
+  // mesh.ply.tmp-PID-N behind. prlimit sets the limit as a shell's ulimit does, for the child
+  // alone, with SIGXFSZ at its default.
+  TempDir dir;
+  const fs::path scene = syntheticRecording(dir);
+  const fs::path out = dir / "out";
+  const ProcessResult r = testing::runProcess(
+      {"/usr/bin/prlimit", "--fsize=20000", OBJSCAN_EXE, "fuse", scene.string(), "--out",
+       out.string()},
+      {});
+  expectOneErrorLine(r, 1, (out / "mesh.ply").string() + ": write failed: File too large");
+  EXPECT_EQ(testing::entryCount(out), 0u) << "no temporary file, no half mesh";
+}
+
 // Recordings and synthetic scenes are decoded on a read-ahead thread: the off-screen renderer of
 // a synth: source and OpenNI2's file player must work there too.
 TEST(FuseCli, ReadsASyntheticSceneAndAnOniRecordingAhead) {
