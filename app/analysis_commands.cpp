@@ -59,7 +59,7 @@ Command addEvalCommand(CLI::App& app) {
   addDiscoveryOptions(eval, eval_options.config);
   addSceneReading(eval, eval_options.reading);
   eval->add_option("--splits", eval_options.splits, "Random train/test halvings")
-      ->check(CLI::PositiveNumber)
+      ->check(wholeNumberFrom(1))
       ->capture_default_str();
   eval->add_option("--seed", eval_options.seed, "Seed of the splits and folds")
       ->capture_default_str();
@@ -149,9 +149,9 @@ Command addScanCommand(CLI::App& app) {
       ->required();
   auto* scan_frames = scan->add_option("--frames", scan_options.limits.max_frames,
                                        "Stop capture after this many frames")
-                          ->check(CLI::PositiveNumber);
+                          ->check(wholeNumberFrom(1));
   scan->add_option("--seconds", scan_options.limits.max_seconds, "Stop capture after this long")
-      ->check(CLI::PositiveNumber)
+      ->check(positiveNumber())
       ->excludes(scan_frames);
   addFusionOptions(scan, scan_options.fuse);
   scan->add_option("--record", state->record,

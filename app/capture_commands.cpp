@@ -79,9 +79,9 @@ Command addRecordCommand(CLI::App& app) {
                      "scene through objscan's virtual OpenNI2 sensor");
   auto* frames_option =
       record->add_option("--frames", record_options.frames, "Stop after this many frames")
-          ->check(CLI::PositiveNumber);
+          ->check(wholeNumberFrom(1));
   record->add_option("--seconds", record_options.seconds, "Stop after this many seconds")
-      ->check(CLI::PositiveNumber)
+      ->check(positiveNumber())
       ->excludes(frames_option);
   record->add_flag("--compress-color", record_options.compress_color,
                    "Store colour as JPEG (lossy, about 10x smaller); depth stays lossless");

@@ -2,7 +2,10 @@
 // (README, "Exit codes"). Nothing else lives here.
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <csignal>
+#include <filesystem>
+#include <new>
 #include <cstdio>
 #include <stdexcept>
 #include <string>
@@ -53,14 +56,26 @@ int run(int argc, char** argv) {
       addFuseCommand(app),   addDiscoverCommand(app), addEvalCommand(app),    addTrainCommand(app),
       addRenderCommand(app), addScanCommand(app)};
 
+  // "objscan help [COMMAND]" is "objscan [COMMAND] --help", as git and cargo have it.
+  std::vector<std::string> args(argv + 1, argv + argc);
+  if (!args.empty() && args[0] == "help") {
+    args.erase(args.begin());
+    args.resize(std::min<std::size_t>(args.size(), 1));
+    args.emplace_back("--help");
+  }
+  std::reverse(args.begin(), args.end());  // CLI11 takes its vector in reverse order
   try {
-    app.parse(argc, argv);
+    app.parse(args);
   } catch (const CLI::CallForHelp& e) {
     return app.exit(e);
   } catch (const CLI::CallForAllHelp& e) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
-    printError(std::string(e.what()) + " (run 'objscan --help')");
+    std::string help = "objscan --help";
+    for (const Command& command : commands) {
+      if (command.sub->parsed()) help = "objscan " + command.sub->get_name() + " --help";
+    }
+    printError(std::string(e.what()) + " (run '" + help + "')");
     return kExitBadInput;
   }
   if (version) {
@@ -97,6 +112,18 @@ int main(int argc, char** argv) {
   } catch (const objscan::InputError& e) {
     printError(e.what());
     return kExitBadInput;
+  } catch (const std::filesystem::filesystem_error& e) {
+    // A path given on the command line that cannot be looked at (a symbolic link loop, a folder
+    // without search permission): name it and the reason, not the library's "filesystem error:
+    // status: ..." text. objscan's own writes report OutputError, never this.
+    printError((e.path1().empty() ? std::string("a path") : e.path1().string()) + ": " +
+               e.code().message());
+    return kExitBadInput;
+  } catch (const std::bad_alloc&) {
+    printError(
+        "out of memory: the input is too large for this machine (a smaller --voxel-size, or "
+        "fewer or smaller scenes, need less)");
+    return kExitRuntimeFailure;
   } catch (const std::invalid_argument& e) {
     printError(e.what());
     return kExitBadInput;

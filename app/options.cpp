@@ -1,5 +1,8 @@
 #include "options.h"
 
+#include <charconv>
+#include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <iterator>
@@ -122,9 +125,40 @@ std::string exactText(float value) {
   return text;
 }
 
+CLI::Validator wholeNumberFrom(std::uint64_t min) {
+  const std::string wanted = "must be a whole number of at least " + std::to_string(min);
+  return CLI::Validator(
+      [min, wanted](std::string& text) -> std::string {
+        std::uint64_t value = 0;
+        const char* end = text.data() + text.size();
+        const auto [ptr, error] = std::from_chars(text.data(), end, value);
+        // Counts of frames, splits or vertices never come near 2^53; larger is a typo.
+        if (error != std::errc() || ptr != end || value > (std::uint64_t{1} << 53) ||
+            value < min) {
+          return wanted + " (got '" + text + "')";
+        }
+        return {};
+      },
+      "", "whole number");
+}
+
+CLI::Validator positiveNumber() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        char* end = nullptr;
+        const double value = std::strtod(text.c_str(), &end);
+        if (text.empty() || end != text.c_str() + text.size() || !std::isfinite(value) ||
+            !(value > 0.0)) {
+          return "must be a number above 0 (got '" + text + "')";
+        }
+        return {};
+      },
+      "", "positive number");
+}
+
 void addFusionOptions(CLI::App* sub, pipeline::FuseOptions& o) {
   sub->add_option("--voxel-size", o.config.volume.voxel_size_m,
-                  "Voxel edge in metres (default: 3 m / 512, the paper's density)")
+                  "Voxel edge in metres (default 5.86 mm: 3 m / 512, the paper's density)")
       ->default_str(exactText(o.config.volume.voxel_size_m));
   sub->add_option("--truncation", o.config.volume.truncation_m,
                   "Truncation distance in metres (default: 0.03, or 3 voxels if larger)");
@@ -138,11 +172,11 @@ void addFusionOptions(CLI::App* sub, pipeline::FuseOptions& o) {
                   "Integrate at given poses instead of tracking: a TUM trajectory file, or "
                   "'groundtruth' for the source's own");
   sub->add_option("--start", o.start, "First frame (0-based)")
-      ->check(CLI::NonNegativeNumber)
+      ->check(wholeNumberFrom(0))
       ->capture_default_str();
-  sub->add_option("--end", o.end, "Stop before this frame")->check(CLI::PositiveNumber);
+  sub->add_option("--end", o.end, "Stop before this frame")->check(wholeNumberFrom(1));
   sub->add_option("--every", o.every, "Use every n-th frame")
-      ->check(CLI::PositiveNumber)
+      ->check(wholeNumberFrom(1))
       ->capture_default_str();
   sub->add_option("--intrinsics", o.intrinsics,
                   "intrinsics.json (fx, fy, cx, cy, width, height) replacing the source's");
@@ -153,7 +187,7 @@ void addDiscoveryOptions(CLI::App* sub, discovery::DiscoveryConfig& config) {
   sub->add_option("--min-size", config.min_size,
                   "Smallest segment, in vertices at the paper's density (scaled with the "
                   "mesh's; the paper's m_size)")
-      ->check(CLI::PositiveNumber)
+      ->check(wholeNumberFrom(1))
       ->capture_default_str();
   sub->add_flag_callback(
       "--paper-segmentation",

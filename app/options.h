@@ -19,6 +19,14 @@ namespace objscan::app {
 /// float (settings.json must repeat a run exactly).
 std::string exactText(float value);
 
+/// A whole number of at least `min` (frames, splits, vertices): refuses a sign, a fraction and a
+/// number too large for a count with "must be a whole number of at least MIN (got 'TEXT')",
+/// where CLI11's own checks print a 300-digit bound or wrap around to 18446744073709551615.
+CLI::Validator wholeNumberFrom(std::uint64_t min);
+
+/// A finite number above 0 (seconds, sizes): "must be a number above 0 (got 'TEXT')".
+CLI::Validator positiveNumber();
+
 /// fuse's and scan's: voxel size, truncation, depth range, poses, frame selection, intrinsics.
 void addFusionOptions(CLI::App* sub, pipeline::FuseOptions& o);
 

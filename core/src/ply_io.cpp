@@ -20,6 +20,7 @@
 #include <cstring>
 #include <limits>
 #include <stdexcept>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <system_error>
@@ -340,18 +341,17 @@ double minimumBodyBytes(const ParsedHeader& header) {
   for (const Elem& e : header.elements) {
     double row = 0.0;
     for (const Prop& p : e.props) {
-      const double min_items = p.slot == Slot::kIndices ? 3.0 : 0.0;
+      // A list may be empty here: a face of fewer than 3 indices is named as such when read.
       if (header.format == PlyFormat::kAscii) {
-        row += 2.0 * (p.list ? 1.0 + min_items : 1.0);
+        row += 2.0;  // a character and a separator
       } else {
-        row += p.list ? static_cast<double>(sizeOf(p.count_type)) +
-                            min_items * static_cast<double>(sizeOf(p.type))
-                      : static_cast<double>(sizeOf(p.type));
+        row += static_cast<double>(sizeOf(p.list ? p.count_type : p.type));
       }
     }
     total += row * static_cast<double>(e.count);
   }
-  return total;
+  // The last ASCII value may end the file without a separator (readPly warns).
+  return header.format == PlyFormat::kAscii && total > 0.0 ? total - 1.0 : total;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -407,18 +407,18 @@ class AsciiSource {
   /// Whether `values` more values could still be in the file: each takes at least a character
   /// and a separator. Checked before anything is sized by a count read from the file.
   bool canHold(std::uint64_t values, Type) const {
-    return values <= static_cast<std::uint64_t>(end_ - p_) / 2;
+    return values <= (static_cast<std::uint64_t>(end_ - p_) + 1) / 2;
   }
 
-  /// After the last element only whitespace may follow.
-  void finish() {
+  /// Bytes after the last element other than whitespace (readPly warns and ignores them).
+  std::size_t trailing() {
     while (p_ != end_ && isSpace(*p_)) ++p_;
-    if (p_ != end_) {
-      throw ParseError{
-          "line " + std::to_string(line_) +
-          ": unexpected data after the last element (do the header's counts match the data?)"};
-    }
+    return static_cast<std::size_t>(end_ - p_);
   }
+
+  /// The file's last value when the file ends right after it, without a line break (MeshLab and
+  /// Open3D accept that; readPly warns, since a file cut inside that value reads the same).
+  const std::optional<std::string>& unterminated() const { return unterminated_; }
 
   std::string position() const { return "line " + std::to_string(line_); }
 
@@ -431,10 +431,9 @@ class AsciiSource {
     if (p_ == end_) throw ParseError{"the file ends early (truncated?)"};
     const char* start = p_;
     while (p_ != end_ && !isSpace(*p_)) ++p_;
-    // A value must be followed by a separator: a file cut inside its last number would otherwise
-    // read as a shorter, wrong number.
-    if (p_ == end_) throw ParseError{"the file ends in the middle of a value (truncated?)"};
-    return {start, static_cast<std::size_t>(p_ - start)};
+    const std::string_view tok(start, static_cast<std::size_t>(p_ - start));
+    if (p_ == end_) unterminated_ = std::string(tok.substr(0, 40));
+    return tok;
   }
 
   template <class T>
@@ -461,6 +460,7 @@ class AsciiSource {
   const char* p_;
   const char* end_;
   int line_;
+  std::optional<std::string> unterminated_;
 };
 
 template <bool kSwap>
@@ -503,13 +503,8 @@ class BinarySource {
     return values <= static_cast<std::uint64_t>(end_ - p_) / sizeOf(t);
   }
 
-  /// After the last element nothing may follow: extra bytes mean the header's counts are wrong.
-  void finish() const {
-    if (p_ != end_) {
-      throw ParseError{std::to_string(end_ - p_) +
-                       " bytes follow the last element (do the header's counts match the data?)"};
-    }
-  }
+  /// Bytes after the last element (readPly warns and ignores them).
+  std::size_t trailing() const { return static_cast<std::size_t>(end_ - p_); }
 
   std::string position() const { return "byte " + std::to_string(p_ - begin_) + " of the data"; }
 
@@ -678,7 +673,7 @@ void readBody(Source& in, const ParsedHeader& header, TriangleMesh& mesh, PlyRea
                        prop + " (" + in.position() + "): " + err.what};
     }
   }
-  in.finish();
+  report.trailing_bytes = in.trailing();
 }
 
 PlyHeader publicHeader(const ParsedHeader& parsed) {
@@ -747,6 +742,7 @@ TriangleMesh readPly(const fs::path& path, PlyReadReport* report_out) {
       const int header_lines = static_cast<int>(std::count(bytes.data(), begin, '\n'));
       AsciiSource in(begin, end, header_lines + 1);
       readBody(in, header, mesh, report);
+      report.unterminated_last_value = in.unterminated();
     } else if ((header.format == PlyFormat::kBinaryLittleEndian) == host_little) {
       BinarySource<false> in(begin, end);
       readBody(in, header, mesh, report);
@@ -762,6 +758,16 @@ TriangleMesh readPly(const fs::path& path, PlyReadReport* report_out) {
     mesh.validate();
   } catch (const std::invalid_argument& e) {
     throw InputError(path, e.what());
+  }
+  if (report.unterminated_last_value) {
+    log::warning(path.string() + ": the file does not end with a line break; its last value '" +
+                 *report.unterminated_last_value +
+                 "' was read as complete (a file cut short inside it would read the same)");
+  }
+  if (report.trailing_bytes > 0) {
+    log::warning(path.string() + ": " + std::to_string(report.trailing_bytes) +
+                 (report.trailing_bytes == 1 ? " byte" : " bytes") +
+                 " after the last element ignored (do the header's counts match the data?)");
   }
   if (report.degenerate_dropped > 0) {
     log::warning(path.string() + ": dropped " + std::to_string(report.degenerate_dropped) +

@@ -37,7 +37,12 @@ namespace fs = std::filesystem;
 
 /// The mesh file an argument names.
 fs::path meshOf(const fs::path& argument) {
-  if (!fs::is_directory(argument)) return argument;
+  std::error_code ec;
+  const fs::file_type type = fs::status(argument, ec).type();
+  if (ec && type != fs::file_type::not_found) {
+    throw InputError(argument, "cannot access: " + ec.message());
+  }
+  if (type != fs::file_type::directory) return argument;
   for (const char* name : {"fused/mesh.ply", "mesh.ply"}) {
     if (fs::is_regular_file(argument / name)) return argument / name;
   }

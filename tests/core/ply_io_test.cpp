@@ -248,9 +248,19 @@ TEST(PlyIo, EveryTruncationIsAnErrorNamingTheFile) {
     writePly(dir / "whole.ply", mesh, format);
     const std::string bytes = testing::readBytes(dir / "whole.ply");
     ASSERT_NO_THROW(readPly(dir / "whole.ply"));
+    // An ASCII file cut inside its last value, or just before its final line break, reads as a
+    // file without a final line break does (MeshLab and Open3D read those): with a warning,
+    // reported as unterminated_last_value.
+    const std::size_t last_value = bytes.find_last_of(" \n", bytes.size() - 2) + 1;
     for (std::size_t size = 0; size < bytes.size(); ++size) {
       const auto cut = dir / "cut.ply";
       writeBytes(cut, bytes.substr(0, size));
+      if (format == PlyFormat::kAscii && size > last_value) {
+        PlyReadReport report;
+        EXPECT_NO_THROW(readPly(cut, &report)) << "cut at byte " << size;
+        EXPECT_TRUE(report.unterminated_last_value.has_value()) << "cut at byte " << size;
+        continue;
+      }
       EXPECT_THROW(
           {
             try {
@@ -271,9 +281,8 @@ TEST(PlyIo, TruncationMessagesSayWhereTheDataEnds) {
   writeBytes(dir / "a.ply",
              "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float "
              "y\nproperty float z\n"
-             "end_header\n0 0 0\n1 1 12");
-  expectReadError(dir / "a.ply",
-                  "vertex 1 of 2, property 'z' (line 9): the file ends in the middle of a value");
+             "end_header\n0 0 0\n1 1    ");
+  expectReadError(dir / "a.ply", "vertex 1 of 2, property 'z' (line 9): the file ends early");
   writeBytes(dir / "h.ply", "ply\nformat ascii 1.0\nelement vertex 2\nproperty fl");
   expectReadError(dir / "h.ply", "no 'end_header' line");
 }
@@ -349,8 +358,6 @@ TEST(PlyIo, CorruptHeadersAreErrors) {
        "list count type 'float' must be an integer type"},
       {"ply\nformat ascii 1.0\nelement vertex 1\n" + xyz + "end_header\n0 zero 0\n",
        "'zero' is not a number"},
-      {"ply\nformat ascii 1.0\nelement vertex 1\n" + xyz + "end_header\n0 0 0\n1 1 1\n",
-       "unexpected data after the last element"},
   };
   for (std::size_t i = 0; i < cases.size(); ++i) {
     SCOPED_TRACE("case " + std::to_string(i));
@@ -416,8 +423,10 @@ TEST(PlyIo, ElementsWithoutPropertiesCannotClaimRows) {
                   "element 'junk' declares 18446744073709551615 rows but no properties");
 }
 
-TEST(PlyIo, DataAfterTheLastElementIsAnErrorInBinaryToo) {
-  // A header that under-counts the vertices would otherwise drop data without a word.
+TEST(PlyIo, DataAfterTheLastElementIsIgnoredAndCounted) {
+  // Issue 18, defect 10: MeshLab and Open3D read such files; objscan refused them. It now reads
+  // them, counts what it ignored, and warns (a header that under-counts the vertices is the
+  // usual cause).
   TempDir dir;
   Bytes b;
   for (int k = 0; k < 9; ++k) b.put<float>(static_cast<float>(k));
@@ -425,7 +434,42 @@ TEST(PlyIo, DataAfterTheLastElementIsAnErrorInBinaryToo) {
              "ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\n"
              "property float y\nproperty float z\nend_header\n" +
                  b.data);
-  expectReadError(dir / "extra.ply", "12 bytes follow the last element");
+  PlyReadReport report;
+  EXPECT_EQ(readPly(dir / "extra.ply", &report).positions.size(), 2u);
+  EXPECT_EQ(report.trailing_bytes, 12u);
+  const std::string xyz = "property float x\nproperty float y\nproperty float z\n";
+  writeBytes(dir / "extra_ascii.ply", "ply\nformat ascii 1.0\nelement vertex 1\n" + xyz +
+                                          "end_header\n0 0 0\n1 1 1\n  \n");
+  EXPECT_EQ(readPly(dir / "extra_ascii.ply", &report).positions.size(), 1u);
+  EXPECT_EQ(report.trailing_bytes, 9u);  // "1 1 1\n  \n" (the line break before it is skipped)
+}
+
+TEST(PlyIo, AnAsciiFileWithoutItsFinalLineBreakIsReadWithAWarning) {
+  TempDir dir;
+  const std::string xyz = "property float x\nproperty float y\nproperty float z\n";
+  const std::string faces = "element face 1\nproperty list uchar int vertex_indices\n";
+  writeBytes(dir / "a.ply", "ply\nformat ascii 1.0\nelement vertex 3\n" + xyz + faces +
+                                "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2");
+  PlyReadReport report;
+  const TriangleMesh mesh = readPly(dir / "a.ply", &report);
+  ASSERT_EQ(mesh.triangles.size(), 1u);
+  EXPECT_EQ(mesh.triangles[0], Eigen::Vector3i(0, 1, 2));
+  EXPECT_EQ(report.unterminated_last_value, std::optional<std::string>("2"));
+  EXPECT_EQ(report.trailing_bytes, 0u);
+}
+
+TEST(PlyIo, AFaceOfFewerThanThreeIndicesIsNamedAsSuch) {
+  // Was reported as "truncated" from the header's size estimate.
+  TempDir dir;
+  const std::string xyz = "property float x\nproperty float y\nproperty float z\n";
+  const std::string faces = "element face 2\nproperty list uchar int vertex_indices\n";
+  for (const std::string& face : {std::string("2 0 1"), std::string("0")}) {
+    writeBytes(dir / "f.ply", "ply\nformat ascii 1.0\nelement vertex 3\n" + xyz + faces +
+                                  "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n" + face + "\n");
+    expectReadError(dir / "f.ply", "face 1 of 2, property 'vertex_indices' (line 14): a face needs "
+                                   "at least 3 vertex indices, this one has " +
+                                       face.substr(0, 1));
+  }
 }
 
 TEST(PlyIo, MalformedValuesAndHeaderLinesAreErrors) {

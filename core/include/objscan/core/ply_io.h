@@ -2,6 +2,7 @@
 
 #include <cstddef>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -38,6 +39,9 @@ struct PlyReadReport {
   std::size_t faces = 0;               ///< polygons in the file (before fan triangulation)
   std::size_t degenerate_dropped = 0;  ///< triangles dropped because a vertex repeats
   std::vector<std::string> ignored;    ///< "vertex.s", "material", ... not read into the mesh
+  std::size_t trailing_bytes = 0;  ///< after the last element (not whitespace), ignored
+  /// ASCII: the last value, when the file ends right after it without a line break.
+  std::optional<std::string> unterminated_last_value;
 };
 
 /// Reads a PLY mesh (ASCII or binary of either byte order). Vertex properties x, y, z (required),
