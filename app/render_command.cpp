@@ -93,8 +93,8 @@ void printPictures(const char* label, const pipeline::PicturesOutcome& o, const 
   for (std::size_t rank : o.pictures.visible) {
     visible += (visible.empty() ? "#" : ", #") + std::to_string(rank);
   }
-  std::printf("%-14s%zu pictures (%s view; painted top %zu, visible: %s) -> %s in %.1f s\n", label,
-              o.images, render::toString(o.view), o.painted,
+  std::printf("%-14s%zu %s (%s view; painted top %zu, visible: %s) -> %s in %.1f s\n", label,
+              o.images, o.images == 1 ? "picture" : "pictures", render::toString(o.view), o.painted,
               visible.empty() ? "none" : visible.c_str(), (dir / report::kRendersFolder).c_str(),
               o.seconds);
 }

@@ -64,7 +64,8 @@ PicturesOutcome renderPictures(const TriangleMesh& mesh, const Trajectory* traje
   std::vector<render::PaintedHypothesis> paint = painted(mesh, hypotheses, options.top, what);
   out.painted = paint.size();
   report::Pictures& pictures = out.pictures;
-  ProgressBar progress(options.progress_label, out.painted + 2);
+  // The overview, each close-up, and the contact sheet when there is a close-up to put on it.
+  ProgressBar progress(options.progress_label, 1 + out.painted + (out.painted > 0 ? 1 : 0));
   render::SnapshotRenderer renderer(mesh, paint);
   const render::SnapshotView view =
       render::overviewView(mesh, trajectory, paint, options.width, options.height, options.view);

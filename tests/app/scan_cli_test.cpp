@@ -273,6 +273,16 @@ TEST_F(ScanCli, RenderNamesWhatIsMissing) {
                      (bad_dir / "hypotheses.json").string() +
                          ": \"hypotheses[1].scene\" names a scene that \"scenes\" does not list");
 
+  // No hypotheses: the overview alone, and the progress bar ends at 100 % (it stopped at 50 %).
+  nlohmann::json none = readJson(out_ / "hypotheses.json");
+  none["hypotheses"] = nlohmann::json::array();
+  writeFileAtomically(bad_dir / "hypotheses.json", none.dump());
+  const ProcessResult empty_render = objscan({"render", bad_dir.string()});
+  EXPECT_EQ(empty_render.exit_code, 0) << empty_render.err;
+  EXPECT_NE(empty_render.err.find("100% (1/1)"), std::string::npos) << empty_render.err;
+  EXPECT_NE(empty_render.out.find("written       1 picture ("), std::string::npos)
+      << empty_render.out;
+
   // Truncated JSON.
   writeFileAtomically(no_mesh / "hypotheses.json", doc.dump().substr(0, 100));
   expectOneErrorLine(objscan({"render", no_mesh.string()}), 2,
