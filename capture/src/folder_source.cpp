@@ -137,6 +137,7 @@ std::unique_ptr<FrameSource> makeSource(std::unique_ptr<const Folder> folder, So
   if (intrinsics_override) {
     info.intrinsics = *intrinsics_override;
     info.intrinsics_origin = overrideOrigin(intrinsics_override_origin);
+    info.intrinsics_assumed = false;
   }
   return std::make_unique<FolderSource<Folder>>(std::move(folder), std::move(info), selection);
 }
@@ -179,6 +180,9 @@ std::unique_ptr<FrameSource> openFolderSource(const fs::path& dir, const FrameSe
         folder->intrinsicsFromFile()
             ? (dir / "intrinsics.json").string()
             : std::string("Xtion defaults (the folder has no intrinsics.json)");
+    info.intrinsics_assumed = !folder->intrinsicsFromFile();
+    info.depth_units = "16-bit value / " + std::to_string(static_cast<int>(folder->depthFactor())) +
+                       " = metres";
     info.ground_truth = folder->groundTruth();
     if (intrinsics_override) {
       const Intrinsics& k = *intrinsics_override;
@@ -215,6 +219,8 @@ std::unique_ptr<FrameSource> openFolderSource(const fs::path& dir, const FrameSe
         folder->intrinsicsFromFile()
             ? folder->intrinsicsFile().string()
             : std::string("7-Scenes defaults (the folder has no camera-intrinsics.txt)");
+    info.intrinsics_assumed = !folder->intrinsicsFromFile();
+    info.depth_units = "16-bit millimetres";
     info.ground_truth = folder->groundTruth();
     if (intrinsics_override) {
       checkOverride(*intrinsics_override, intrinsics_override_origin,

@@ -133,6 +133,8 @@ class OniFileSource final : public FrameSource {
       info_.intrinsics = *intrinsics_override;
       info_.intrinsics_origin = intrinsics_origin.empty() ? "given" : intrinsics_origin;
     }
+    info_.intrinsics_assumed = info_.intrinsics_origin.rfind("Xtion defaults", 0) == 0;
+    info_.depth_units = "OpenNI2 depth in millimetres";
     time_offset_s_ = time_offset_s;
     if (fs::exists(sidecars.ground_truth, ec)) {
       info_.ground_truth = readTumTrajectory(sidecars.ground_truth);

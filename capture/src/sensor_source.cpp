@@ -45,6 +45,8 @@ class Sensor {
       info_.intrinsics = *intrinsics_override;
       info_.intrinsics_origin = intrinsics_origin.empty() ? "given" : intrinsics_origin;
     }
+    info_.intrinsics_assumed = info_.intrinsics_origin.rfind("Xtion defaults", 0) == 0;
+    info_.depth_units = "OpenNI2 depth in millimetres";
     requireIntrinsicsFit(depth_, info_, uri_);
     info_.live = true;
     info_.description = std::string("sensor ") + device_.getDeviceInfo().getName() + " (" +

@@ -58,12 +58,20 @@ FusedScene fuseSource(const FuseOptions& options, const FuseLimits& limits) {
   }
   if (limits.after_open) limits.after_open();
   log::info("fusing " + info.description + (given ? " at the given poses" : " with ICP tracking"));
+  if (info.intrinsics_assumed) {
+    // Silent wrong scale otherwise: every point's distance from the optical axis depends on fx.
+    log::warning("the camera intrinsics are ASSUMED: " + info.intrinsics_origin +
+                 "; a different camera makes the mesh the wrong size and shape. Add the "
+                 "recording's calibration (intrinsics.json beside it) or pass --intrinsics FILE");
+  }
 
   FusedScene fused;
   FuseStats& out = fused.stats;
   out.source_description = info.description;
   out.intrinsics = info.intrinsics;
   out.intrinsics_origin = info.intrinsics_origin;
+  out.intrinsics_assumed = info.intrinsics_assumed;
+  out.depth_units = info.depth_units;
   out.live = info.live;
   std::optional<fusion::Fusion> fusion;
   fusion::FrameTimings totals;

@@ -65,6 +65,34 @@ TEST(FuseCli, WritesAMeshAndATrajectoryThatReadBack) {
   EXPECT_EQ(files, (std::set<std::string>{"mesh.ply", "trajectory.txt", "settings.json"}));
 }
 
+TEST(FuseCli, SaysWhichIntrinsicsAndDepthUnitsItUsesAndWarnsWhenTheyAreAssumed) {
+  // Issue 18, defect 9: a TUM folder without intrinsics.json was fused with the Xtion defaults
+  // (fx 570.3 against fr2's 520.9: the mesh 10 % small) and only `info` said so.
+  TempDir dir;
+  const fs::path shipped = fs::path(OBJSCAN_SOURCE_DIR) / "recordings" / "tum_fr2_desk_10";
+  const ProcessResult own =
+      objscan({"fuse", shipped.string(), "--out", (dir / "own").string(), "--end", "2"});
+  ASSERT_EQ(own.exit_code, 0) << own.err;
+  EXPECT_NE(own.out.find("intrinsics    fx 520.90 fy 521.00 cx 325.10 cy 249.70, 640x480 (" +
+                         (shipped / "intrinsics.json").string() +
+                         "); depth: 16-bit value / 5000 = metres"),
+            std::string::npos)
+      << own.out;
+  EXPECT_EQ(own.err.find("ASSUMED"), std::string::npos) << own.err;
+
+  fs::copy(shipped, dir / "bare", fs::copy_options::recursive);
+  fs::remove(dir / "bare" / "intrinsics.json");
+  const ProcessResult bare =
+      objscan({"fuse", (dir / "bare").string(), "--out", (dir / "out").string(), "--end", "2"});
+  ASSERT_EQ(bare.exit_code, 0) << bare.err;
+  EXPECT_NE(bare.out.find("fx 570.30 fy 570.30 cx 319.50 cy 239.50, 640x480 (ASSUMED: Xtion "
+                          "defaults (the folder has no intrinsics.json)"),
+            std::string::npos)
+      << bare.out;
+  EXPECT_NE(bare.err.find("warning: the camera intrinsics are ASSUMED"), std::string::npos)
+      << bare.err;
+}
+
 TEST(FuseCli, AFileSizeLimitIsOneErrorLineAndLeavesNoTemporaryFile) {
   // Issue 18, defect 7: under `ulimit -f` SIGXFSZ killed fuse (exit 153, no message) and left
   // mesh.ply.tmp-PID-N behind. prlimit sets the limit as a shell's ulimit does, for the child

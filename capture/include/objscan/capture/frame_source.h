@@ -35,6 +35,10 @@ struct SourceInfo {
       frame_count;                ///< frames next() will return (after selection); none for live
   Intrinsics intrinsics;          ///< of the depth images (colour is registered to depth)
   std::string intrinsics_origin;  ///< "intrinsics.json", "sensor field of view", ...
+  /// The camera is a default, not the recording's own calibration: a wrong one scales the whole
+  /// mesh (the Xtion default's fx 570.3 against TUM fr2's 520.9 is 10 %), so callers warn.
+  bool intrinsics_assumed = false;
+  std::string depth_units;  ///< how stored depth becomes metres, e.g. "value / 5000 (TUM)"
   std::optional<Trajectory> ground_truth;  ///< camera poses T_W_C, keyed by the frames' stamp_s
   bool live = false;                       ///< frames come from a sensor in real time
 };

@@ -54,6 +54,8 @@ struct FuseStats {
   bool live = false;
   Intrinsics intrinsics;          ///< of the frames fused
   std::string intrinsics_origin;  ///< where they came from
+  bool intrinsics_assumed = false;  ///< a default, not the recording's calibration (warned)
+  std::string depth_units;          ///< how the source's depth becomes metres
   std::size_t frames_read = 0, frames_fused = 0, frames_lost = 0, frames_without_depth = 0;
   std::size_t frames_processed = 0;  ///< handed to fusion (fused, lost or without depth)
   std::size_t bad_frames = 0, without_pose = 0;
