@@ -143,11 +143,19 @@ class Statement {
   }
 
   bool isNull(int c) const { return sqlite3_column_type(statement_, c) == SQLITE_NULL; }
-  std::int64_t integer(int c) const { return sqlite3_column_int64(statement_, c); }
-  /// A REAL column; NULL (a stored NaN) reads as NaN.
+  /// An INTEGER column. SQLite would convert text or a real silently (text to 0): anything else
+  /// is a damaged catalog.
+  std::int64_t integer(int c) const {
+    if (sqlite3_column_type(statement_, c) != SQLITE_INTEGER) notANumber(c, "a whole number");
+    return sqlite3_column_int64(statement_, c);
+  }
+  /// A REAL column; NULL (a stored NaN) reads as NaN; text or a blob is a damaged catalog (SQLite
+  /// would read "abc" as 0 and change every score normalised with it).
   double real(int c) const {
-    return isNull(c) ? std::numeric_limits<double>::quiet_NaN()
-                     : sqlite3_column_double(statement_, c);
+    const int type = sqlite3_column_type(statement_, c);
+    if (type == SQLITE_NULL) return std::numeric_limits<double>::quiet_NaN();
+    if (type != SQLITE_FLOAT && type != SQLITE_INTEGER) notANumber(c, "a number");
+    return sqlite3_column_double(statement_, c);
   }
   std::string text(int c) const {
     const auto* p = reinterpret_cast<const char*>(sqlite3_column_text(statement_, c));
@@ -163,6 +171,20 @@ class Statement {
   }
 
  private:
+  [[noreturn]] void notANumber(int c, const char* wanted) const {
+    const char* name = sqlite3_column_name(statement_, c);
+    const int type = sqlite3_column_type(statement_, c);
+    throw InputError(connection_->path,
+                     std::string("damaged: column '") + (name != nullptr ? name : "?") +
+                         "' holds " +
+                         (type == SQLITE_TEXT   ? "text"
+                          : type == SQLITE_BLOB ? "a blob"
+                          : type == SQLITE_NULL ? "nothing"
+                                                : "a fraction") +
+                         " where " + wanted +
+                         " belongs (restore the catalog or start a new one with --catalog NEW)");
+  }
+
   Statement& check(int rc) {
     if (rc != SQLITE_OK) connection_->fail(rc, "binding a query parameter", access_);
     return *this;
@@ -397,6 +419,10 @@ struct Catalog::Impl {
     }
     segment.eigenvalues = {real(7), real(8), real(9)};
     segment.extents = {real(10), real(11), real(12)};
+    if (!(segment.extents.allFinite() && segment.extents.minCoeff() >= 0.0f)) {
+      throw InputError(connection.path, "damaged: segment " + std::to_string(segment.id) +
+                                            " has a negative or undefined extent");
+    }
     segment.measures.compactness = s.real(13);
     segment.measures.symmetry = s.real(14);
     segment.measures.smoothness = s.real(15);
@@ -547,7 +573,16 @@ std::vector<RecurrenceEntry> Catalog::recurrenceEntries() const {
   while (s.step("reading segments")) {
     RecurrenceEntry& e = out.emplace_back();
     e.scene_id = s.integer(0);
-    for (int d = 0; d < 3; ++d) e.extents[d] = static_cast<float>(s.real(1 + d));
+    for (int d = 0; d < 3; ++d) {
+      e.extents[d] = static_cast<float>(s.real(1 + d));
+      // Recurrence compares log-extents: a negative one would silently switch it off.
+      if (!(std::isfinite(e.extents[d]) && e.extents[d] >= 0.0f)) {
+        s.finish();
+        throw InputError(impl_->connection.path, "damaged: a segment of scene " +
+                                                     std::to_string(e.scene_id) +
+                                                     " has a negative or undefined extent");
+      }
+    }
     for (int j = 0; j < 5; ++j) e.measures[static_cast<std::size_t>(j)] = s.real(4 + j);
   }
   s.finish();

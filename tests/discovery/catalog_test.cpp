@@ -284,6 +284,34 @@ TEST(Catalog, RecurrenceEntriesAreEverySegment) {
   }
 }
 
+TEST(Catalog, TextInANumericColumnAndNegativeExtentsAreADamagedCatalog) {
+  // Issue 18, defect 9: SQLite reads "abc" in a REAL column as 0, which changed scores without a
+  // word, and a negative extent silently switched recurrence off.
+  TempDir dir;
+  const fs::path file = dir / "catalog.sqlite";
+  std::int64_t scene = 0;
+  {
+    Catalog catalog(file);
+    scene = catalog.addScene(makeScene("desk", "aa"), {makeSegment(0), makeSegment(1)});
+  }
+  sql(file, "UPDATE segments SET compactness = 'abc' WHERE id = (SELECT min(id) FROM segments)");
+  {
+    const Catalog catalog(file);
+    expectInputError([&] { catalog.segments(scene, false); }, file,
+                     "damaged: column 'compactness' holds text where a number belongs");
+    expectInputError([&] { catalog.recurrenceEntries(); }, file,
+                     "damaged: column 'compactness' holds text where a number belongs");
+  }
+  sql(file,
+      "UPDATE segments SET compactness = 0.5; PRAGMA ignore_check_constraints = 1; "
+      "UPDATE segments SET extent_1 = -0.2 WHERE id = (SELECT max(id) FROM segments)");
+  const Catalog catalog(file);
+  expectInputError([&] { catalog.segments(scene, false); }, file,
+                   "has a negative or undefined extent");
+  expectInputError([&] { catalog.recurrenceEntries(); }, file,
+                   "has a negative or undefined extent");
+}
+
 TEST(Catalog, MovedCatalogKeepsWorking) {
   TempDir dir;
   Catalog a(dir / "catalog.sqlite");
