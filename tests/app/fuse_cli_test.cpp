@@ -93,6 +93,42 @@ TEST(FuseCli, SaysWhichIntrinsicsAndDepthUnitsItUsesAndWarnsWhenTheyAreAssumed) 
       << bare.err;
 }
 
+TEST(FuseCli, AVolumeOutgrowingMemoryStopsFusionAndKeepsWhatItHas) {
+  // Issue 18, defect 4: fuse --voxel-size 0.001 took 5.8 GB, and discover on its mesh ended in
+  // std::bad_alloc. OBJSCAN_MEMORY_LIMIT stands in for a small machine: any limit under the
+  // 150 MB fusion takes besides its volume stops it after the first frame.
+  TempDir dir;
+  const fs::path scene = syntheticRecording(dir);
+  const fs::path out = dir / "out";
+  testing::ProcessOptions small;
+  small.env = {"OBJSCAN_MEMORY_LIMIT=100M"};
+  const ProcessResult r =
+      testing::runProcess({OBJSCAN_EXE, "fuse", scene.string(), "--out", out.string()}, small);
+  EXPECT_EQ(r.exit_code, 1) << r.err;  // the summary of what was written is on stdout
+  EXPECT_NE(r.err.find("objscan: error: fusion stopped at frame 0: the volume holds "),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("more than the 100 MB OBJSCAN_MEMORY_LIMIT allows; a larger --voxel-size "
+                       "needs less"),
+            std::string::npos)
+      << r.err;
+  EXPECT_EQ(readTumTrajectory(out / "trajectory.txt").size(), 1u);
+  EXPECT_GT(readPly(out / "mesh.ply").triangles.size(), 0u);
+
+  // Discovery of that mesh is refused before any work, with the figure.
+  testing::ProcessOptions tiny;
+  tiny.env = {"OBJSCAN_MEMORY_LIMIT=1M"};
+  expectOneErrorLine(testing::runProcess({OBJSCAN_EXE, "discover", (out / "mesh.ply").string(),
+                                          "--out", (dir / "found").string(), "--no-catalog"},
+                                         tiny),
+                     1, "more than the 1.0 MB OBJSCAN_MEMORY_LIMIT allows: fuse with a larger "
+                        "--voxel-size");
+  tiny.env = {"OBJSCAN_MEMORY_LIMIT=lots"};
+  expectOneErrorLine(
+      testing::runProcess({OBJSCAN_EXE, "fuse", scene.string(), "--out", out.string()}, tiny), 2,
+      "OBJSCAN_MEMORY_LIMIT='lots' is not a size in bytes");
+}
+
 TEST(FuseCli, AFileSizeLimitIsOneErrorLineAndLeavesNoTemporaryFile) {
   // Issue 18, defect 7: under `ulimit -f` SIGXFSZ killed fuse (exit 153, no message) and left
   // mesh.ply.tmp-PID-N behind. prlimit sets the limit as a shell's ulimit does, for the child
