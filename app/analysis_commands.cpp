@@ -19,6 +19,11 @@ Command addDiscoverCommand(CLI::App& app) {
   DiscoverCommandOptions& discover_options = *options;
   CLI::App* discover = app.add_subcommand(
       "discover", "Segment scene meshes, measure and rank object hypotheses into DIR");
+  discover->footer(
+      "Examples:\n"
+      "  objscan discover out/desk/mesh.ply --out out/desk-objects\n"
+      "  objscan discover view.pcd --out out/view --no-catalog   (one camera view, ranked alone)\n"
+      "  objscan discover session.oni --frame 30 --out out/frame30");
   discover
       ->add_option("meshes", discover_options.meshes,
                    "Scenes: meshes (.ply, e.g. objscan fuse's mesh.ply), folders holding one, or a "
@@ -54,6 +59,10 @@ Command addEvalCommand(CLI::App& app) {
   EvalCommandOptions& eval_options = *options;
   CLI::App* eval = app.add_subcommand(
       "eval", "The paper's evaluation on labelled scenes: AP, precision-recall, ablation, recall");
+  eval->footer(
+      "Example:\n"
+      "  objscan eval scenes/learn*.pcd --out out/eval --no-classifiers --category "
+      "'boxes=learn[0-9]\\.pcd'");
   addLabelledScenes(eval, eval_options.scenes, eval_options.catalog);
   eval->add_option("--out", eval_options.out, "Folder for the CSV files and plots")->required();
   addDiscoveryOptions(eval, eval_options.config);
@@ -110,6 +119,7 @@ Command addRenderCommand(CLI::App& app) {
   CLI::App* render = app.add_subcommand(
       "render",
       "Render the top hypotheses of a results folder into DIR/renders/ and DIR/report.html");
+  render->footer("Example:\n  objscan render out/desk --top 8 --view top --size 1920x1440");
   render
       ->add_option("dir", render_options.dir,
                    "A results folder of objscan scan (or discover): hypotheses.json, mesh.ply, "
@@ -139,6 +149,11 @@ Command addScanCommand(CLI::App& app) {
   ScanCommandOptions& scan_options = state->options;
   CLI::App* scan = app.add_subcommand(
       "scan", "Capture (or replay) to ranked objects in one go: fuse, discover, render, report");
+  scan->footer(
+      "Examples:\n"
+      "  objscan scan recordings/tum_fr2_desk.oni --out out/demo\n"
+      "  objscan scan --out out/live --record out/live.oni --seconds 20   (the first sensor)\n"
+      "  objscan scan --config out/demo/settings.json --out out/again      (repeat a run)");
   scan->add_option(
       "source", scan_options.source,
       "X.oni, a TUM or 7-Scenes folder, synth:<seed>, virtual:<source>, or live[:uri]; "

@@ -16,8 +16,10 @@ Command addInfoCommand(CLI::App& app) {
   auto info_path = std::make_shared<std::string>();
   CLI::App* info = app.add_subcommand(
       "info", "Print what a mesh (.ply), trajectory (TUM .txt) or recording holds");
+  info->footer("Examples:\n  objscan info session.oni\n  objscan info out/desk/mesh.ply");
   info->add_option("path", *info_path,
-                   "A .ply mesh, a TUM trajectory .txt, or a TUM-format recording folder")
+                   "A .ply mesh, a TUM trajectory .txt, an .oni recording, or a TUM or 7-Scenes "
+                   "recording folder")
       ->required();
   return {info, [info_path] {
             runInfo(*info_path);
@@ -72,6 +74,10 @@ Command addRecordCommand(CLI::App& app) {
   RecordCommandOptions& record_options = *options;
   CLI::App* record = app.add_subcommand(
       "record", "Record a sensor session to an .oni file (depth lossless); Ctrl-C stops cleanly");
+  record->footer(
+      "Examples:\n"
+      "  objscan record --out desk.oni --seconds 30\n"
+      "  objscan record --device virtual:recordings/tum_fr2_desk_10 --out desk10.oni");
   record->add_option("--out", record_options.out, "The .oni file to write")->required();
   record->add_option("--device", record_options.device,
                      "Sensor URI (objscan devices lists them); default: the first one. "
@@ -96,6 +102,11 @@ Command addFuseCommand(CLI::App& app) {
   auto options = std::make_shared<FuseCommandOptions>();
   CLI::App* fuse = app.add_subcommand(
       "fuse", "Fuse a recording into DIR/mesh.ply and DIR/trajectory.txt (TSDF + ICP tracking)");
+  fuse->footer(
+      "Examples:\n"
+      "  objscan fuse recordings/tum_fr2_desk.oni --out out/desk\n"
+      "  objscan fuse ../data/rgbd_dataset_freiburg2_desk --out out/fr2 --voxel-size 0.004 "
+      "--every 2");
   fuse->add_option("source", options->fuse.source,
                    "X.oni, a TUM or 7-Scenes folder, synth:<seed>, live[:uri] or virtual:<source>")
       ->required();

@@ -43,6 +43,13 @@ void printDiscoverSummary(const DiscoverCommandOptions& options,
   if (run.catalog) {
     std::printf("catalog       %s: %zu scenes, %zu segments\n", run.catalog->c_str(),
                 run.catalog_scenes, run.catalog_segments);
+    if (run.catalog_scenes > run.scenes.size()) {
+      // The paper's normalisation over every scene seen: a surprise when it is not said.
+      std::printf(
+          "              scores are normalised over all %zu scenes, so the same scene can rank "
+          "differently as scenes are added (--no-catalog ranks these scenes alone)\n",
+          run.catalog_scenes);
+    }
   }
   if (run.ranked.empty()) std::printf("no object candidates\n");
   const bool many = run.scenes.size() > 1;

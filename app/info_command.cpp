@@ -10,7 +10,9 @@
 #include <string>
 
 #include "objscan/capture/oni_container.h"
+#include "objscan/capture/folder_source.h"
 #include "objscan/capture/openni.h"
+#include "objscan/capture/seven_scenes_folder.h"
 #include "objscan/capture/tum_folder.h"
 #include "objscan/core/error.h"
 #include "objscan/core/file_names.h"
@@ -197,6 +199,24 @@ bool startsWith(const fs::path& path, std::string_view magic) {
 
 }  // namespace
 
+/// A 7-Scenes folder, as fuse reads it.
+static void describeSevenScenesFolder(const fs::path& path) {
+  const std::unique_ptr<capture::FrameSource> source = capture::openFolderSource(path);
+  const capture::SourceInfo& info = source->info();
+  const Intrinsics& in = info.intrinsics;
+  row("file", path.string());
+  row("type", "recording (7-Scenes folder)");
+  row("frames", fmt("%zu", info.frame_count.value_or(0)));
+  row("intrinsics", fmt("fx %.1f fy %.1f cx %.1f cy %.1f, %dx%d px (%s%s)", in.fx_px, in.fy_px,
+                        in.cx_px, in.cy_px, in.width_px, in.height_px,
+                        info.intrinsics_assumed ? "ASSUMED: " : "", info.intrinsics_origin.c_str()));
+  row("depth units", info.depth_units);
+  row("ground truth", info.ground_truth ? fmt("%zu poses (frame-*.pose.txt), %.3f m path",
+                                              info.ground_truth->size(),
+                                              info.ground_truth->pathLengthM())
+                                        : std::string("none"));
+}
+
 static void describeOni(const fs::path& path) {
   const capture::OniFileSummary summary = capture::inspectOniFile(path);  // throws when broken
   row("recording", "OpenNI2 .oni, " + bytesText(summary.bytes));
@@ -226,10 +246,15 @@ void runInfo(const fs::path& path) {
     throw InputError(path, "no such file or directory");
   if (ec) throw InputError(path, "cannot access: " + ec.message());
   if (status.type() == fs::file_type::directory) {
+    if (capture::SevenScenesFolder::looksLikeSevenScenesFolder(path)) {
+      describeSevenScenesFolder(path);
+      return;
+    }
     if (!capture::TumFolder::looksLikeTumFolder(path)) {
       throw InputError(path,
-                       "is a directory, not a mesh, trajectory or TUM-format recording "
-                       "(a recording folder has depth.txt or associations.txt)");
+                       "is a directory, not a mesh, trajectory, TUM-format or 7-Scenes recording "
+                       "(a recording folder has depth.txt or associations.txt, or "
+                       "frame-NNNNNN.depth.png files)");
     }
     describeTumFolder(path);
     return;

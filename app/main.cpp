@@ -44,7 +44,9 @@ int run(int argc, char** argv) {
   bool verbose = false;
   bool quiet = false;
   auto* verbose_flag = app.add_flag("-v,--verbose", verbose, "Log details to stderr");
-  app.add_flag("-q,--quiet", quiet, "Log only errors to stderr (no progress)")
+  app.add_flag("-q,--quiet", quiet,
+               "Errors only: no progress, warnings or summary (info and devices still print "
+               "what they find)")
       ->excludes(verbose_flag);
   app.footer(
       "Exit codes: 0 success, 1 runtime failure, 2 bad usage or bad input, 3 no sensor attached,\n"
@@ -86,7 +88,17 @@ int run(int argc, char** argv) {
                          : verbose ? objscan::log::Level::kDebug
                                    : objscan::log::Level::kInfo);
   for (const Command& command : commands) {
-    if (command.sub->parsed()) return command.run();
+    if (!command.sub->parsed()) continue;
+    const std::string name = command.sub->get_name();
+    if (quiet && name != "info" && name != "devices") {
+      // --quiet: errors only. The summary a command prints is a report, not its result (info's
+      // and devices' output is their result, so they keep it); the files say everything.
+      if (std::freopen("/dev/null", "w", stdout) == nullptr) {
+        printError("--quiet: cannot silence standard output");
+        return kExitRuntimeFailure;
+      }
+    }
+    return command.run();
   }
   printError("a command is required (run 'objscan --help')");
   return kExitBadInput;

@@ -46,12 +46,17 @@ TEST(Cli, HelpForEveryCommandExitsZero) {
 TEST(Cli, SynthWritesARecordingThatInfoReads) {
   TempDir dir;
   const std::string out = (dir / "scene").string();
-  ProcessResult r = objscan({"--quiet", "synth", "--out", out, "--frames", "4", "--objects", "6",
-                             "--seed", "9", "--preset", "counter"});
+  ProcessResult r = objscan({"synth", "--out", out, "--frames", "4", "--objects", "6", "--seed",
+                             "9", "--preset", "counter"});
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_EQ(r.err, "");
   EXPECT_NE(r.out.find("scene         counter, 6 objects, seed 9, noise on"), std::string::npos)
       << r.out;
+  // --quiet: errors only, on either stream (issue 18: the stdout summary stayed).
+  r = objscan({"--quiet", "synth", "--out", (dir / "quiet").string(), "--frames", "4", "--objects",
+               "6", "--seed", "9", "--preset", "counter"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err, "");
+  EXPECT_EQ(r.out, "");
   r = objscan({"info", out});
   EXPECT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("frames        4 (paired by associations.txt)"), std::string::npos) << r.out;
