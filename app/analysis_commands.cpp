@@ -46,6 +46,7 @@ Command addDiscoverCommand(CLI::App& app) {
                        "Score with a classifier from objscan train (default: the average of the "
                        "normalised measures)");
   discover->add_flag("--timings", discover_options.timings, "Print each stage's time");
+  addObjectFormat(discover, discover_options.object_format);
   addDiscoveryOptions(discover, discover_options.config);
   addSceneReading(discover, discover_options.reading);
   return {discover, [options, discover] {
@@ -183,6 +184,7 @@ Command addScanCommand(CLI::App& app) {
   scan->add_option("--model", scan_options.discover.model,
                    "Score with a classifier from objscan train (default: the average)");
   addDiscoveryOptions(scan, scan_options.discover.config);
+  addObjectFormat(scan, scan_options.discover.object_format);
   addPictureOptions(scan, scan_options.pictures);
   auto* truth_option = scan->add_option(
       "--ground-truth", scan_options.ground_truth,

@@ -22,8 +22,10 @@ discovery::SceneDiscoveryOptions sceneDiscoveryOptions(const DiscoverCommandOpti
 
 report::Hypotheses writeDiscoveryResults(const DiscoverCommandOptions& options,
                                          const discovery::SceneDiscovery& run) {
-  report::Hypotheses hypotheses = report::hypothesesFrom(run, options.model.string(), options.out);
-  report::writeDiscovery(options.out, hypotheses, run);
+  const MeshFormat format = meshFormatFromName(options.object_format);
+  report::Hypotheses hypotheses =
+      report::hypothesesFrom(run, options.model.string(), options.out, format);
+  report::writeDiscovery(options.out, hypotheses, run, format);
   return hypotheses;
 }
 

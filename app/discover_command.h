@@ -22,6 +22,7 @@ struct DiscoverCommandOptions {
   bool no_catalog = false;
   std::filesystem::path model;  ///< empty: the unsupervised average
   bool timings = false;
+  std::string object_format = "ply";  ///< --object-format: objects/rank_NNN.<format>
   report::Settings settings;  ///< the command line's, for OUT/settings.json
 };
 
@@ -29,7 +30,8 @@ struct DiscoverCommandOptions {
 /// (InputError / std::invalid_argument for a bad one, before any work).
 discovery::SceneDiscoveryOptions sceneDiscoveryOptions(const DiscoverCommandOptions& options);
 
-/// Writes OUT/hypotheses.json and OUT/objects/rank_NNN.ply of a discovery run (the objects folder
+/// Writes OUT/hypotheses.json and OUT/objects/rank_NNN.<format> (with rank_NNN.json, its box and
+/// pose) of a discovery run (the objects folder
 /// swapped in whole, so it never mixes runs) and returns what was written.
 report::Hypotheses writeDiscoveryResults(const DiscoverCommandOptions& options,
                                          const discovery::SceneDiscovery& run);

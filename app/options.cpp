@@ -156,6 +156,14 @@ CLI::Validator positiveNumber() {
       "", "positive number");
 }
 
+void addObjectFormat(CLI::App* sub, std::string& format) {
+  sub->add_option("--object-format", format,
+                  "File format of each object in objects/: ply (colours, normals), obj "
+                  "(MeshLab, Blender), stl (geometry only) or glb (glTF: browsers, Blender)")
+      ->check(CLI::IsMember({"ply", "obj", "stl", "glb"}))
+      ->capture_default_str();
+}
+
 void addFusionOptions(CLI::App* sub, pipeline::FuseOptions& o) {
   sub->add_option("--voxel-size", o.config.volume.voxel_size_m,
                   "Voxel edge in metres (default 5.86 mm: 3 m / 512, the paper's density)")

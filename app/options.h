@@ -33,6 +33,9 @@ void addFusionOptions(CLI::App* sub, pipeline::FuseOptions& o);
 /// discover's, eval's, train's and scan's: --min-size, --paper-segmentation.
 void addDiscoveryOptions(CLI::App* sub, discovery::DiscoveryConfig& config);
 
+/// discover's and scan's --object-format ply|obj|stl|glb.
+void addObjectFormat(CLI::App* sub, std::string& format);
+
 /// --intrinsics: the camera of unorganized PCD scenes.
 void addSceneReading(CLI::App* sub, discovery::SceneReading& reading);
 

@@ -106,6 +106,37 @@ std::optional<CatalogUse> catalogUseOf(const discovery::SceneDiscovery& run) {
 
 namespace {
 
+/// objects/rank_NNN.json: what one object file needs beside it to be placed in the scene.
+Json objectPoseJson(const HypothesisRecord& h) {
+  const OrientedBox& box = *h.box;
+  Eigen::Matrix3f rotation = box.axes;
+  if (rotation.determinant() < 0.0f) rotation.col(2) = -rotation.col(2);  // right-handed
+  Json pose = Json::array();
+  for (int r = 0; r < 4; ++r) {
+    Json row = Json::array();
+    for (int c = 0; c < 4; ++c) {
+      row.push_back(r == 3 ? (c == 3 ? 1.0f : 0.0f) : c == 3 ? box.centre[r] : rotation(r, c));
+    }
+    pose.push_back(row);
+  }
+  Json j = {{"rank", h.rank},
+            {"scene", h.scene},
+            {"mesh", fs::path(h.file).filename().string()},
+            {"vertex_count", h.vertex_count.value_or(h.vertices.size())},
+            {"frame",
+             "T_W_O maps the object frame (origin at the box centre, axes along the box's, "
+             "right-handed) to the scene mesh's world frame; metres; rows of a 4x4 matrix"},
+            {"T_W_O", pose},
+            {"box",
+             {{"centre", vectorJson(box.centre)},
+              {"axes",
+               {vectorJson(rotation.col(0)), vectorJson(rotation.col(1)),
+                vectorJson(rotation.col(2))}},
+              {"extents", vectorJson(box.extents)}}}};
+  if (h.score) j["score"] = *h.score;
+  return j;
+}
+
 /// `name` relative to `results_dir` and absolute when it names a file; as it is otherwise.
 std::pair<std::string, std::string> sceneReference(const std::string& name,
                                                    const fs::path& results_dir) {
@@ -122,7 +153,7 @@ std::pair<std::string, std::string> sceneReference(const std::string& name,
 }  // namespace
 
 Hypotheses hypothesesFrom(const discovery::SceneDiscovery& run, const std::string& model,
-                          const fs::path& results_dir) {
+                          const fs::path& results_dir, MeshFormat object_format) {
   Hypotheses out;
   std::vector<std::string> names;  // each scene's "mesh", for its hypotheses' "scene"
   out.scoring = Scoring{discovery::toString(run.scorer), model, run.normalised_over};
@@ -159,19 +190,23 @@ Hypotheses hypothesesFrom(const discovery::SceneDiscovery& run, const std::strin
     r.scale = h.segment.scale;
     r.vertices = h.segment.vertices;
     r.vertex_count = h.segment.vertices.size();
-    r.file = std::string(kObjectsFolder) + "/" + rankFileName(i + 1, ".ply");
+    r.file = std::string(kObjectsFolder) + "/" +
+             rankFileName(i + 1, extensionOf(object_format).c_str());
     out.hypotheses.push_back(std::move(r));
   }
   return out;
 }
 
 void writeDiscovery(const fs::path& dir, const Hypotheses& hypotheses,
-                    const discovery::SceneDiscovery& run) {
+                    const discovery::SceneDiscovery& run, MeshFormat format) {
   const fs::path partial = freshPartialFolder(dir, kObjectsFolder);
   for (std::size_t i = 0; i < run.ranked.size(); ++i) {
     const TriangleMesh& mesh = run.scenes[run.ranked[i].scene].mesh;
-    writePly(partial / fs::path(hypotheses.hypotheses.at(i).file).filename(),
-             mesh.subset(run.ranked[i].hypothesis.segment.vertices));
+    const HypothesisRecord& h = hypotheses.hypotheses.at(i);
+    const fs::path file = partial / fs::path(h.file).filename();
+    writeFileAtomically(file,
+                        encodeMesh(mesh.subset(run.ranked[i].hypothesis.segment.vertices), format));
+    if (h.box) writeJson(partial / rankFileName(h.rank, ".json"), objectPoseJson(h));
   }
   writeHypotheses(dir / kHypothesesFile, hypotheses);
   swapInFolder(dir, kObjectsFolder);

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -142,9 +143,78 @@ TEST(DiscoverCli, RanksBothMoundsFirstAndWritesEachHypothesisMesh) {
       }
     }
   }
-  EXPECT_EQ(testing::entryCount(dir / "out" / "objects"), h.size());
+  EXPECT_EQ(testing::entryCount(dir / "out" / "objects"), 2 * h.size());  // mesh + pose each
   EXPECT_EQ(doc["scenes"][0]["mesh"], "../scene.ply");
   EXPECT_EQ(doc["scenes"][0]["mesh_absolute"], fs::absolute(dir / "scene.ply").string());
+}
+
+TEST(DiscoverCli, ObjectsInEveryFormatWithAPoseThatPlacesThem) {
+  // Issue 18: objects exported only as binary PLY, with no file saying where each one is.
+  TempDir dir;
+  const TriangleMesh mesh = twoMounds();
+  writePly(dir / "scene.ply", mesh);
+  const TriangleMesh ply = [&] {
+    EXPECT_EQ(objscan({"discover", (dir / "scene.ply").string(), "--out", (dir / "ply").string(),
+                       "--no-catalog"})
+                  .exit_code,
+              0);
+    return readPly(dir / "ply" / "objects" / "rank_001.ply");
+  }();
+  // The pose: T_W_O's inverse puts every vertex of the object inside its box, centred.
+  const nlohmann::json pose = readJson(dir / "ply" / "objects" / "rank_001.json");
+  EXPECT_EQ(pose["mesh"], "rank_001.ply");
+  Eigen::Matrix4f T_W_O;
+  for (int r = 0; r < 4; ++r) {
+    for (int c = 0; c < 4; ++c) T_W_O(r, c) = pose["T_W_O"][r][c].get<float>();
+  }
+  const Eigen::Matrix3f rotation = T_W_O.topLeftCorner<3, 3>();
+  EXPECT_NEAR(rotation.determinant(), 1.0f, 1e-4f);
+  const Eigen::Matrix4f T_O_W = T_W_O.inverse();
+  for (const Eigen::Vector3f& p : ply.positions) {
+    const Eigen::Vector3f o = (T_O_W * p.homogeneous()).head<3>();
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_LE(std::abs(o[a]), pose["box"]["extents"][a].get<float>() / 2 + 1e-3f);
+    }
+  }
+  for (const std::string format : {"obj", "stl", "glb"}) {
+    SCOPED_TRACE(format);
+    const fs::path out = dir / format;
+    const ProcessResult r = objscan({"discover", (dir / "scene.ply").string(), "--out",
+                                     out.string(), "--no-catalog", "--object-format", format});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const nlohmann::json doc = readJson(out / "hypotheses.json");
+    EXPECT_EQ(doc["hypotheses"][0]["file"], "objects/rank_001." + format);
+    const std::string bytes = readWholeFile(out / "objects" / ("rank_001." + format));
+    if (format == "obj") {
+      std::size_t v = 0, f = 0;
+      for (const std::string& line : testing::lines(bytes)) {
+        v += line.rfind("v ", 0) == 0 ? 1 : 0;
+        f += line.rfind("f ", 0) == 0 ? 1 : 0;
+      }
+      EXPECT_EQ(v, ply.positions.size());
+      EXPECT_EQ(f, ply.triangles.size());
+    } else if (format == "stl") {
+      ASSERT_GE(bytes.size(), 84u);
+      std::uint32_t n = 0;
+      std::memcpy(&n, bytes.data() + 80, 4);
+      EXPECT_EQ(n, ply.triangles.size());
+      EXPECT_EQ(bytes.size(), 84u + 50u * n);
+    } else {
+      ASSERT_GE(bytes.size(), 20u);
+      EXPECT_EQ(bytes.substr(0, 4), "glTF");
+      std::uint32_t total = 0, json_bytes = 0;
+      std::memcpy(&total, bytes.data() + 8, 4);
+      std::memcpy(&json_bytes, bytes.data() + 12, 4);
+      EXPECT_EQ(total, bytes.size());
+      const nlohmann::json gltf = nlohmann::json::parse(bytes.substr(20, json_bytes));
+      EXPECT_EQ(gltf["asset"]["version"], "2.0");
+      EXPECT_EQ(gltf["accessors"][0]["count"], ply.positions.size());
+      EXPECT_EQ(gltf["meshes"][0]["primitives"][0]["mode"], 4);
+    }
+  }
+  expectOneErrorLine(objscan({"discover", (dir / "scene.ply").string(), "--out",
+                              (dir / "x").string(), "--object-format", "fbx"}),
+                     2, "--object-format");
 }
 
 TEST(DiscoverCli, RenderFindsTheSceneFromAnyWorkingDirectoryAndAfterAMove) {

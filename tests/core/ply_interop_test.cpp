@@ -10,6 +10,8 @@
 #include <pcl/io/ply_io.h>
 #include <pcl/point_types.h>
 
+#include "objscan/core/atomic_file.h"
+#include "objscan/core/mesh_formats.h"
 #include "objscan/core/ply_io.h"
 #include "test_support.h"
 
@@ -127,6 +129,38 @@ TEST(PlyInterop, PclAndOpen3DReadWhatObjscanWrites) {
     for (std::size_t t = 0; t < m.triangles.size(); ++t) {
       for (int k = 0; k < 3; ++k)
         ASSERT_EQ(static_cast<int>(pm.polygons[t].vertices[k]), m.triangles[t][k]);
+    }
+  }
+}
+
+TEST(MeshFormatInterop, Open3DReadsTheObjStlAndGlbObjscanWrites) {
+  // objects/rank_NNN.{obj,stl,glb} (discover --object-format): Open3D reads them through its own
+  // OBJ and STL readers and tinygltf. OBJ and glTF keep vertices as written; STL has three
+  // corners per triangle.
+  testing::TempDir dir;
+  const TriangleMesh m = sampleMesh();
+  for (const MeshFormat format : {MeshFormat::kObj, MeshFormat::kStl, MeshFormat::kGlb}) {
+    SCOPED_TRACE(toString(format));
+    const auto file = dir / ("ours" + extensionOf(format));
+    writeFileAtomically(file, encodeMesh(m, format));
+    open3d::geometry::TriangleMesh om;
+    ASSERT_TRUE(open3d::io::ReadTriangleMesh(file.string(), om));
+    ASSERT_EQ(om.triangles_.size(), m.triangles.size());
+    for (std::size_t t = 0; t < m.triangles.size(); ++t) {
+      for (int k = 0; k < 3; ++k) {
+        const Eigen::Vector3f read = om.vertices_[om.triangles_[t][k]].cast<float>();
+        ASSERT_LT((read - m.positions[m.triangles[t][k]]).norm(), 1e-6f) << t;
+      }
+    }
+    if (format == MeshFormat::kStl) continue;
+    // Colours, corner by corner (Open3D's OBJ reader may order the vertices its own way).
+    ASSERT_EQ(om.vertex_colors_.size(), om.vertices_.size());
+    for (std::size_t t = 0; t < m.triangles.size(); ++t) {
+      for (int k = 0; k < 3; ++k) {
+        const Eigen::Vector3d c = om.vertex_colors_[om.triangles_[t][k]] * 255.0;
+        ASSERT_EQ(c.array().round().cast<int>().matrix(), m.colors[m.triangles[t][k]].cast<int>())
+            << t;
+      }
     }
   }
 }

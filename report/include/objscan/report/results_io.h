@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "objscan/core/mesh_formats.h"
 #include "objscan/discovery/evaluation.h"
 #include "objscan/discovery/scenes.h"
 #include "objscan/report/results.h"
@@ -41,13 +42,15 @@ std::optional<CatalogUse> catalogUseOf(const discovery::SceneDiscovery& run);
 /// file scored with (empty for the average). Scenes are named relative to `results_dir`, with
 /// their absolute path beside (SceneRecord).
 Hypotheses hypothesesFrom(const discovery::SceneDiscovery& run, const std::string& model,
-                          const std::filesystem::path& results_dir);
+                          const std::filesystem::path& results_dir,
+                          MeshFormat object_format = MeshFormat::kPly);
 
-/// Writes DIR/objects/rank_NNN.ply (each hypothesis's sub-mesh of run.scenes[...].mesh) staged,
-/// then DIR/hypotheses.json, then swaps objects/ in: a failure before the swap leaves the
-/// previous run's pair as it was.
+/// Writes DIR/objects/rank_NNN.<format> (each hypothesis's sub-mesh of run.scenes[...].mesh, in
+/// the format hypothesesFrom named) and rank_NNN.json (its box and its pose T_W_O: the object
+/// frame at the box centre, along the box axes) staged, then DIR/hypotheses.json, then swaps
+/// objects/ in: a failure before the swap leaves the previous run's pair as it was.
 void writeDiscovery(const std::filesystem::path& dir, const Hypotheses& hypotheses,
-                    const discovery::SceneDiscovery& run);
+                    const discovery::SceneDiscovery& run, MeshFormat format = MeshFormat::kPly);
 
 void writeHypotheses(const std::filesystem::path& file, const Hypotheses& hypotheses);
 /// Requires "hypotheses" (each with a rank >= 1) and each scene's "mesh".
