@@ -9,6 +9,8 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include "objscan/core/progress.h"
+
 #include "volume_internal.h"
 
 namespace objscan::fusion {
@@ -151,10 +153,11 @@ float crossing(float f0, float f1) { return std::clamp(f0 / (f0 - f1), 1e-3f, 1.
 
 }  // namespace
 
-TriangleMesh extractMesh(const TsdfVolume& volume_in) {
+TriangleMesh extractMesh(const TsdfVolume& volume_in, const std::string& progress_label) {
   const TsdfVolume::Impl& volume = volume_in.impl();
   const CaseTable& table = caseTable();
   const std::size_t block_count = volume.blocks.size();
+  ProgressBar progress(progress_label, 2 * block_count);
   const float voxel = volume.voxel_size_m;
 
   const auto neighbourhood = [&](std::size_t i) {
@@ -181,6 +184,7 @@ TriangleMesh extractMesh(const TsdfVolume& volume_in) {
   tbb::parallel_for(
       tbb::blocked_range<std::size_t>(0, block_count),
       [&](const tbb::blocked_range<std::size_t>& r) {
+        progress.advance(r.size());
         for (std::size_t i = r.begin(); i != r.end(); ++i) {
           const Neighbourhood n = neighbourhood(i);
           BlockVertices& out = per_block[i];
@@ -223,6 +227,7 @@ TriangleMesh extractMesh(const TsdfVolume& volume_in) {
   tbb::parallel_for(
       tbb::blocked_range<std::size_t>(0, block_count),
       [&](const tbb::blocked_range<std::size_t>& r) {
+        progress.advance(r.size());
         for (std::size_t i = r.begin(); i != r.end(); ++i) {
           const Neighbourhood n = neighbourhood(i);
           for (int z = 0; z < kBlockSide; ++z) {

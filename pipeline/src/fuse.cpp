@@ -170,21 +170,20 @@ FusedScene fuseSource(const FuseOptions& options, const FuseLimits& limits) {
         const double peak = kPeakPerVolumeByte * volume + kFusionBaseBytes;
         const double budget = 0.9 * static_cast<double>(*memory);
         if (peak > budget) {
-          out.sensor_lost =
-              "fusion stopped at frame " + std::to_string(frame.index) + ": the volume holds " +
-              bytesText(static_cast<std::uint64_t>(volume)) + " at " +
-              voxelText(options.config.volume.voxel_size_m) + " voxels, and meshing it needs " +
-              "about " + bytesText(static_cast<std::uint64_t>(peak)) + ", more than " +
-              availableMemoryText(*memory) + "; a larger --voxel-size needs less " +
-              "(twice the size, about a quarter)";
+          out.sensor_lost = "fusion stopped at frame " + std::to_string(frame.index) +
+                            ": the volume holds " + bytesText(static_cast<std::uint64_t>(volume)) +
+                            " at " + voxelText(options.config.volume.voxel_size_m) +
+                            " voxels, and meshing it needs " + "about " +
+                            bytesText(static_cast<std::uint64_t>(peak)) + ", more than " +
+                            availableMemoryText(*memory) + "; a larger --voxel-size needs less " +
+                            "(twice the size, about a quarter)";
           out.stopped_by = "memory";
           break;
         }
         if (!memory_warned && peak > 0.5 * budget) {
           memory_warned = true;
           log::warning("the volume already needs about half of " + availableMemoryText(*memory) +
-                       " at " +
-                       voxelText(options.config.volume.voxel_size_m) +
+                       " at " + voxelText(options.config.volume.voxel_size_m) +
                        " voxels; fusion stops before it runs out");
         }
       }
@@ -238,7 +237,8 @@ FusedScene fuseSource(const FuseOptions& options, const FuseLimits& limits) {
   }
 
   const auto mesh_start = Clock::now();
-  fused.mesh = fusion::extractMesh(fusion->volume());
+  fused.mesh = fusion::extractMesh(
+      fusion->volume(), limits.progress_label.empty() ? std::string() : "meshing the volume");
   out.mesh_s = secondsSince(mesh_start);
   if (fused.mesh.triangles.empty()) {
     throw InputError(options.source, "the fused volume holds no surface to mesh");

@@ -1,5 +1,7 @@
 #pragma once
 
+#include <string>
+
 #include "objscan/core/triangle_mesh.h"
 #include "objscan/fusion/tsdf_volume.h"
 
@@ -16,6 +18,8 @@ namespace objscan::fusion {
 /// Written here rather than taken from a library: VTK's and PCL's marching cubes need a dense
 /// grid, and Open3D's works only on its own volume types. The case table is generated at start-up
 /// from the cube's faces (see the .cpp) instead of being typed in.
-TriangleMesh extractMesh(const TsdfVolume& volume);
+/// `progress_label` non-empty: a progress bar (with the time left) over both passes, for fine
+/// volumes that take many seconds.
+TriangleMesh extractMesh(const TsdfVolume& volume, const std::string& progress_label = {});
 
 }  // namespace objscan::fusion
