@@ -4,9 +4,9 @@
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <csignal>
+#include <cstdio>
 #include <filesystem>
 #include <new>
-#include <cstdio>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -17,6 +17,7 @@
 #include "objscan/core/log.h"
 #include "objscan/pipeline/fuse.h"
 #include "options.h"
+#include "shell_docs.h"
 
 namespace {
 
@@ -39,6 +40,12 @@ int run(int argc, char** argv) {
       "objscan"};
   bool version = false;
   app.add_flag("--version", version, "Print the version and exit");
+  bool man = false;
+  std::string completion;
+  app.add_flag("--man", man, "Print the man page objscan(1) (roff) and exit");
+  app.add_option("--completion", completion, "Print the completion script for SHELL and exit")
+      ->check(CLI::IsMember({"bash"}))
+      ->type_name("SHELL");
   app.require_subcommand(0, 1);
   app.fallthrough();
   bool verbose = false;
@@ -82,6 +89,11 @@ int run(int argc, char** argv) {
   }
   if (version) {
     std::printf("objscan %s\n", kVersion);
+    return kExitSuccess;
+  }
+  if (man || !completion.empty()) {
+    const std::string text = man ? manPage(app, kVersion) : bashCompletion(app);
+    std::fwrite(text.data(), 1, text.size(), stdout);
     return kExitSuccess;
   }
   objscan::log::setLevel(quiet     ? objscan::log::Level::kError

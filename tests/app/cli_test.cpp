@@ -43,6 +43,39 @@ TEST(Cli, HelpForEveryCommandExitsZero) {
       << top.out;
 }
 
+TEST(Cli, CompletionAndManPageComeFromTheOptionsThemselves) {
+  // Issue 18: shell completion and a man page, generated from the same help text.
+  TempDir dir;
+  const ProcessResult completion = objscan({"--completion", "bash"});
+  ASSERT_EQ(completion.exit_code, 0) << completion.err;
+  testing::writeBytes(dir / "objscan.bash", completion.out);
+  // Bash itself completes with it: a command from its start, a command's option from its start.
+  const ProcessResult words = testing::runProcess(
+      {"/bin/bash", "-c",
+       "source " + (dir / "objscan.bash").string() +
+           "; COMP_WORDS=(objscan fu); COMP_CWORD=1; _objscan; echo \"${COMPREPLY[*]}\";"
+           " COMP_WORDS=(objscan discover --object-f); COMP_CWORD=2; _objscan;"
+           " echo \"${COMPREPLY[*]}\""},
+      {});
+  ASSERT_EQ(words.exit_code, 0) << words.err;
+  EXPECT_EQ(words.out, "fuse\n--object-format\n");
+
+  const ProcessResult man = objscan({"--man"});
+  ASSERT_EQ(man.exit_code, 0) << man.err;
+  testing::writeBytes(dir / "objscan.1", man.out);
+  // groff formats it without a warning; every command and its examples are there.
+  const ProcessResult page = testing::runProcess(
+      {"/usr/bin/groff", "-man", "-Tascii", "-ww", "-P-cbou", (dir / "objscan.1").string()}, {});
+  ASSERT_EQ(page.exit_code, 0) << page.err;
+  EXPECT_EQ(page.err, "");
+  for (const char* text :
+       {"NAME", "COMMANDS", "EXIT STATUS", "OBJSCAN_MEMORY_LIMIT", "fuse", "discover",
+        "--object-format", "objscan scan recordings/tum_fr2_desk.oni"}) {
+    EXPECT_NE(page.out.find(text), std::string::npos) << text;
+  }
+  EXPECT_EQ(objscan({"--completion", "tcsh"}).exit_code, 2);
+}
+
 TEST(Cli, SynthWritesARecordingThatInfoReads) {
   TempDir dir;
   const std::string out = (dir / "scene").string();

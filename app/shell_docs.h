@@ -1,0 +1,19 @@
+#pragma once
+
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+/// The bash completion script and the man page, both generated from the command line's own
+/// definition (names, options, help text, examples), so they never disagree with --help.
+namespace objscan::app {
+
+/// A bash completion script for `objscan` (complete -F): commands, then each command's options,
+/// then file names.
+std::string bashCompletion(const CLI::App& app);
+
+/// objscan(1) in roff (man -l objscan.1): synopsis, each command with its options and examples,
+/// exit status, environment.
+std::string manPage(const CLI::App& app, const std::string& version);
+
+}  // namespace objscan::app
