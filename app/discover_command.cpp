@@ -42,17 +42,7 @@ void printDiscoverSummary(const DiscoverCommandOptions& options,
   std::printf("scored by     %s%s\n", discovery::toString(run.scorer),
               options.model.empty() ? " of the z-normalised measures"
                                     : (" (" + options.model.string() + ")").c_str());
-  if (run.catalog) {
-    std::printf("catalog       %s: %zu scenes, %zu segments\n", run.catalog->c_str(),
-                run.catalog_scenes, run.catalog_segments);
-    if (run.catalog_scenes > run.scenes.size()) {
-      // The paper's normalisation over every scene seen: a surprise when it is not said.
-      std::printf(
-          "              scores are normalised over all %zu scenes, so the same scene can rank "
-          "differently as scenes are added (--no-catalog ranks these scenes alone)\n",
-          run.catalog_scenes);
-    }
-  }
+  printCatalogUse(run);
   if (run.ranked.empty()) std::printf("no object candidates\n");
   const bool many = run.scenes.size() > 1;
   for (std::size_t i = 0; i < std::min<std::size_t>(run.ranked.size(), 10); ++i) {
@@ -79,6 +69,19 @@ void printDiscoverSummary(const DiscoverCommandOptions& options,
               run.seconds);
 }
 
+void printCatalogUse(const discovery::SceneDiscovery& run) {
+  if (!run.catalog) return;
+  std::printf("catalog       %s: %zu scenes, %zu segments\n", run.catalog->c_str(),
+              run.catalog_scenes, run.catalog_segments);
+  if (run.catalog_scenes > run.scenes.size()) {
+    // The paper's normalisation over every scene seen: a surprise when it is not said.
+    std::printf(
+        "              scores are normalised over all %zu scenes, so the same scene can rank "
+        "differently as scenes are added (--no-catalog ranks these scenes alone)\n",
+        run.catalog_scenes);
+  }
+}
+
 int runDiscover(const DiscoverCommandOptions& options) {
   const discovery::SceneDiscoveryOptions library = sceneDiscoveryOptions(options);
   std::vector<discovery::SceneInput> scenes;
@@ -91,7 +94,9 @@ int runDiscover(const DiscoverCommandOptions& options) {
       progress.advance();
     }
   }
-  // Once every scene has been read: a scene that cannot be leaves no output folder behind.
+  // Once every scene has been read (and found to fit in memory): a scene that cannot be leaves no
+  // output folder behind.
+  discovery::requireMemoryFor(scenes);
   const OutputFolderLock lock = prepareOutputFolder(options.out);
   const discovery::SceneDiscovery run = discovery::discoverScenes(std::move(scenes), library);
   writeDiscoveryResults(options, run);

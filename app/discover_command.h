@@ -23,7 +23,7 @@ struct DiscoverCommandOptions {
   std::filesystem::path model;  ///< empty: the unsupervised average
   bool timings = false;
   std::string object_format = "ply";  ///< --object-format: objects/rank_NNN.<format>
-  report::Settings settings;  ///< the command line's, for OUT/settings.json
+  report::Settings settings;          ///< the command line's, for OUT/settings.json
 };
 
 /// The library's options for these: the config checked, the model loaded, the catalog resolved
@@ -35,6 +35,10 @@ discovery::SceneDiscoveryOptions sceneDiscoveryOptions(const DiscoverCommandOpti
 /// swapped in whole, so it never mixes runs) and returns what was written.
 report::Hypotheses writeDiscoveryResults(const DiscoverCommandOptions& options,
                                          const discovery::SceneDiscovery& run);
+
+/// The catalog line of discover's and scan's summaries, with a note when the catalog holds other
+/// scenes, whose measures the scores are normalised over.
+void printCatalogUse(const discovery::SceneDiscovery& run);
 
 /// Prints discover's summary (and with options.timings each stage's time) to stdout.
 void printDiscoverSummary(const DiscoverCommandOptions& options,

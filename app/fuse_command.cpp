@@ -37,8 +37,8 @@ void printFuseSummary(const pipeline::FusedScene& fused, const std::filesystem::
   const Intrinsics& k = o.intrinsics;
   std::printf("intrinsics    fx %.2f fy %.2f cx %.2f cy %.2f, %dx%d (%s%s)%s%s\n", k.fx_px, k.fy_px,
               k.cx_px, k.cy_px, k.width_px, k.height_px, o.intrinsics_assumed ? "ASSUMED: " : "",
-              o.intrinsics_origin.c_str(), o.depth_units.empty() ? "" : "; depth: ",
-              o.depth_units.c_str());
+              o.intrinsics_origin.c_str(),
+              o.depth_units.empty() ? "" : "; depth: ", o.depth_units.c_str());
   std::printf(
       "frames        %zu read, %zu fused, %zu lost, %zu without depth, %zu unreadable%s\n",
       o.frames_read, o.frames_fused, o.frames_lost, o.frames_without_depth, o.bad_frames,

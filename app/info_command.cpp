@@ -9,8 +9,8 @@
 #include <set>
 #include <string>
 
-#include "objscan/capture/oni_container.h"
 #include "objscan/capture/folder_source.h"
+#include "objscan/capture/oni_container.h"
 #include "objscan/capture/openni.h"
 #include "objscan/capture/seven_scenes_folder.h"
 #include "objscan/capture/tum_folder.h"
@@ -207,14 +207,15 @@ static void describeSevenScenesFolder(const fs::path& path) {
   row("file", path.string());
   row("type", "recording (7-Scenes folder)");
   row("frames", fmt("%zu", info.frame_count.value_or(0)));
-  row("intrinsics", fmt("fx %.1f fy %.1f cx %.1f cy %.1f, %dx%d px (%s%s)", in.fx_px, in.fy_px,
-                        in.cx_px, in.cy_px, in.width_px, in.height_px,
-                        info.intrinsics_assumed ? "ASSUMED: " : "", info.intrinsics_origin.c_str()));
+  row("intrinsics",
+      fmt("fx %.1f fy %.1f cx %.1f cy %.1f, %dx%d px (%s%s)", in.fx_px, in.fy_px, in.cx_px,
+          in.cy_px, in.width_px, in.height_px, info.intrinsics_assumed ? "ASSUMED: " : "",
+          info.intrinsics_origin.c_str()));
   row("depth units", info.depth_units);
-  row("ground truth", info.ground_truth ? fmt("%zu poses (frame-*.pose.txt), %.3f m path",
-                                              info.ground_truth->size(),
-                                              info.ground_truth->pathLengthM())
-                                        : std::string("none"));
+  row("ground truth", info.ground_truth
+                          ? fmt("%zu poses (frame-*.pose.txt), %.3f m path",
+                                info.ground_truth->size(), info.ground_truth->pathLengthM())
+                          : std::string("none"));
 }
 
 static void describeOni(const fs::path& path) {

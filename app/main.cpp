@@ -15,6 +15,7 @@
 #include "exit_codes.h"
 #include "objscan/core/error.h"
 #include "objscan/core/log.h"
+#include "objscan/core/memory.h"
 #include "objscan/pipeline/fuse.h"
 #include "options.h"
 #include "shell_docs.h"
@@ -69,6 +70,12 @@ int run(int argc, char** argv) {
   std::vector<std::string> args(argv + 1, argv + argc);
   if (!args.empty() && args[0] == "help") {
     args.erase(args.begin());
+    if (!args.empty() && std::none_of(commands.begin(), commands.end(), [&](const Command& c) {
+          return c.sub->get_name() == args[0];
+        })) {
+      printError("help: no command '" + args[0] + "' (run 'objscan --help' for the list)");
+      return kExitBadInput;
+    }
     args.resize(std::min<std::size_t>(args.size(), 1));
     args.emplace_back("--help");
   }
@@ -99,6 +106,7 @@ int run(int argc, char** argv) {
   objscan::log::setLevel(quiet     ? objscan::log::Level::kError
                          : verbose ? objscan::log::Level::kDebug
                                    : objscan::log::Level::kInfo);
+  objscan::availableMemoryBytes();  // an OBJSCAN_MEMORY_LIMIT that is no size: before any work
   for (const Command& command : commands) {
     if (!command.sub->parsed()) continue;
     const std::string name = command.sub->get_name();
@@ -145,7 +153,7 @@ int main(int argc, char** argv) {
     return kExitBadInput;
   } catch (const std::bad_alloc&) {
     printError(
-        "out of memory: the input is too large for this machine (a smaller --voxel-size, or "
+        "out of memory: the input is too large for this machine (a larger --voxel-size, or "
         "fewer or smaller scenes, need less)");
     return kExitRuntimeFailure;
   } catch (const std::invalid_argument& e) {

@@ -133,8 +133,7 @@ CLI::Validator wholeNumberFrom(std::uint64_t min) {
         const char* end = text.data() + text.size();
         const auto [ptr, error] = std::from_chars(text.data(), end, value);
         // Counts of frames, splits or vertices never come near 2^53; larger is a typo.
-        if (error != std::errc() || ptr != end || value > (std::uint64_t{1} << 53) ||
-            value < min) {
+        if (error != std::errc() || ptr != end || value > (std::uint64_t{1} << 53) || value < min) {
           return wanted + " (got '" + text + "')";
         }
         return {};

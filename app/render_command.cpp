@@ -1,7 +1,9 @@
 #include "render_command.h"
 
 #include <cstdio>
+#include <optional>
 #include <string>
+#include <vector>
 
 #include "exit_codes.h"
 #include "objscan/core/error.h"
@@ -18,32 +20,24 @@ namespace {
 
 namespace fs = std::filesystem;
 
-/// The scene mesh hypotheses.json was made from: the folder's own mesh.ply (scan writes it there),
-/// else the path discover noted relative to the folder, else its absolute path (the folder moved
-/// without its scene), else (a folder from before paths were relative) the path as it was given,
-/// from the working directory.
-fs::path sceneMeshOf(const fs::path& dir, const report::SceneRecord& scene) {
-  std::vector<fs::path> tried = {dir / report::kMeshFile};
+/// The places the scene mesh hypotheses.json was made from may be, in order: the folder's own
+/// mesh.ply (scan writes it there), the path discover noted relative to the folder, its absolute
+/// path (the folder moved without its scene), and (a folder from before paths were relative) the
+/// path as it was given, from the working directory.
+std::vector<fs::path> sceneMeshPlaces(const fs::path& dir, const report::SceneRecord& scene) {
+  std::vector<fs::path> places = {dir / report::kMeshFile};
   const fs::path noted(scene.mesh);
-  tried.push_back(noted.is_relative() ? dir / noted : noted);
+  places.push_back(noted.is_relative() ? dir / noted : noted);
   if (!scene.mesh_absolute.empty()) {
-    tried.emplace_back(scene.mesh_absolute);
+    places.emplace_back(scene.mesh_absolute);
   } else if (noted.is_relative()) {
-    tried.push_back(noted);
+    places.push_back(noted);
   }
-  std::error_code ec;
-  for (const fs::path& mesh : tried) {
-    if (fs::is_regular_file(mesh, ec)) return mesh;
-  }
-  std::string list;
-  for (std::size_t i = 1; i < tried.size(); ++i) list += (i > 1 ? " or " : "") + tried[i].string();
-  throw InputError(dir / report::kMeshFile,
-                   "missing: render needs the scene mesh hypotheses.json was made from (mesh.ply "
-                   "in the results folder, or " +
-                       list + ")");
+  return places;
 }
 
-/// The folder's results with the scene mesh the hypotheses were cut from, checked to be it.
+/// The folder's results with the scene mesh the hypotheses were cut from: the first of
+/// sceneMeshPlaces() that exists and has the vertex count hypotheses.json noted.
 report::ScanResults readForRendering(const fs::path& dir) {
   // Not the old pictures: they are being replaced, and a damaged one must not stop that.
   report::ResultsParts parts;
@@ -52,20 +46,36 @@ report::ScanResults readForRendering(const fs::path& dir) {
   const fs::path file = dir / report::kHypothesesFile;
   const std::vector<report::SceneRecord>& scenes = results.hypotheses->scenes;
   if (scenes.empty()) throw InputError(file, "lists no scene");
-  const fs::path mesh_path = sceneMeshOf(dir, scenes[0]);
-  results.mesh = readPly(mesh_path);
-  if (!scenes[0].vertices || results.mesh->positions.size() != *scenes[0].vertices) {
-    throw InputError(mesh_path, "has " + std::to_string(results.mesh->positions.size()) +
-                                    " vertices, but hypotheses.json was made from a mesh of " +
-                                    (scenes[0].vertices ? std::to_string(*scenes[0].vertices)
-                                                        : std::string("unknown size")) +
-                                    " (run discover again)");
+  const std::vector<fs::path> places = sceneMeshPlaces(dir, scenes[0]);
+  std::optional<InputError> mismatch;
+  std::error_code ec;
+  for (const fs::path& place : places) {
+    if (!fs::is_regular_file(place, ec)) continue;
+    TriangleMesh mesh = readPly(place);
+    if (scenes[0].vertices && mesh.positions.size() == *scenes[0].vertices) {
+      results.mesh = std::move(mesh);
+      if (scenes.size() > 1) {
+        log::warning("hypotheses.json holds " + std::to_string(scenes.size()) +
+                     " scenes; rendering the first, " + place.string());
+      }
+      return results;
+    }
+    if (!mismatch) {
+      mismatch.emplace(place, "has " + std::to_string(mesh.positions.size()) +
+                                  " vertices, but hypotheses.json was made from a mesh of " +
+                                  (scenes[0].vertices ? std::to_string(*scenes[0].vertices)
+                                                      : std::string("unknown size")) +
+                                  " (run discover again)");
+    }
   }
-  if (scenes.size() > 1) {
-    log::warning("hypotheses.json holds " + std::to_string(scenes.size()) +
-                 " scenes; rendering the first, " + mesh_path.string());
-  }
-  return results;
+  if (mismatch) throw *mismatch;
+  std::string list;
+  for (std::size_t i = 1; i < places.size(); ++i)
+    list += (i > 1 ? " or " : "") + places[i].string();
+  throw InputError(dir / report::kMeshFile,
+                   "missing: render needs the scene mesh hypotheses.json was made from (mesh.ply "
+                   "in the results folder, or " +
+                       list + ")");
 }
 
 /// Renders the pictures of the folder's first scene (its mesh, trajectory and hypotheses) and

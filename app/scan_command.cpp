@@ -142,6 +142,7 @@ class ScanRun {
     timings().hypotheses = run.ranked.size();
     std::printf("hypotheses    %zu ranked -> %s, %s\n", run.ranked.size(),
                 (out_ / report::kHypothesesFile).c_str(), (out_ / report::kObjectsFolder).c_str());
+    printCatalogUse(run);
     if (!truth.empty()) evaluate(truth, run);
     return run;
   }

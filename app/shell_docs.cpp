@@ -94,8 +94,9 @@ std::string manPage(const CLI::App& app, const std::string& version) {
                                    ? "\\fI" + roff(option->get_name()) + "\\fR"
                                    : "\\fB" + roff(option->get_name(false, true)) + "\\fR";
       std::string text = option->get_description();
-      if (!option->get_default_str().empty())
+      if (!option->get_default_str().empty() && text.find("default") == std::string::npos) {
         text += " (default " + option->get_default_str() + ")";
+      }
       page += ".TP\n" + name + "\n" + roff(text) + "\n";
     }
     if (!command->get_footer().empty()) {

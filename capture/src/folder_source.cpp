@@ -181,8 +181,8 @@ std::unique_ptr<FrameSource> openFolderSource(const fs::path& dir, const FrameSe
             ? (dir / "intrinsics.json").string()
             : std::string("Xtion defaults (the folder has no intrinsics.json)");
     info.intrinsics_assumed = !folder->intrinsicsFromFile();
-    info.depth_units = "16-bit value / " + std::to_string(static_cast<int>(folder->depthFactor())) +
-                       " = metres";
+    info.depth_units =
+        "16-bit value / " + std::to_string(static_cast<int>(folder->depthFactor())) + " = metres";
     info.ground_truth = folder->groundTruth();
     if (intrinsics_override) {
       const Intrinsics& k = *intrinsics_override;

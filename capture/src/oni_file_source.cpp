@@ -133,7 +133,9 @@ class OniFileSource final : public FrameSource {
       info_.intrinsics = *intrinsics_override;
       info_.intrinsics_origin = intrinsics_origin.empty() ? "given" : intrinsics_origin;
     }
-    info_.intrinsics_assumed = info_.intrinsics_origin.rfind("Xtion defaults", 0) == 0;
+    // Without its sidecar a recording carries only the sensor's nominal field of view (or not
+    // even that): not a calibration.
+    info_.intrinsics_assumed = !intrinsics_override && !fs::exists(sidecars.info, ec);
     info_.depth_units = "OpenNI2 depth in millimetres";
     time_offset_s_ = time_offset_s;
     if (fs::exists(sidecars.ground_truth, ec)) {

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <mutex>
 #include <set>
 #include <stdexcept>
@@ -14,6 +15,7 @@
 
 #include "objscan/capture/virtual_sensor.h"
 #include "objscan/core/error.h"
+#include "objscan/core/log.h"
 
 namespace objscan::capture::openni_detail {
 namespace {
@@ -67,6 +69,13 @@ void ensureOpenNI() {
   }
   openni::OpenNI::addDeviceDisconnectedListener(&watcher());
   started = true;
+  if (const char* uri = std::getenv(kVirtualSensorEnv); uri != nullptr && !openNICanTake(uri)) {
+    // The virtual driver does not announce it (OpenNI2 would crash on it): say so here, where
+    // it can be seen.
+    log::warning(std::string(kVirtualSensorEnv) +
+                 " is ignored: OpenNI2 takes only printable ASCII URIs of at most 200 bytes; give "
+                 "the sensor with --device virtual:<path> instead, which objscan aliases");
+  }
 }
 
 bool wasDisconnected(const std::string& uri) { return watcher().disconnected(uri); }

@@ -53,8 +53,7 @@ class Sensor {
                         (uri_alias_.aliased() ? uri : uri_) + ")";
     if (record) {
       facts_ = {info_.intrinsics, info_.intrinsics_origin, time_offset_s_,
-                uri_alias_.aliased() ? uri : uri_,
-                record->ground_truth};
+                uri_alias_.aliased() ? uri : uri_, record->ground_truth};
       OniRecorder::Options options;
       options.out = record->out;
       options.compress_color = record->compress_color;

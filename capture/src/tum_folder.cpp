@@ -178,8 +178,9 @@ void TumFolder::readAssociations(const fs::path& file) {
   };
   if (!std::is_sorted(frames_.begin(), frames_.end(), by_depth_stamp)) {
     std::stable_sort(frames_.begin(), frames_.end(), by_depth_stamp);
-    std::stable_sort(gt.poses.begin(), gt.poses.end(),
-                     [](const StampedPose& a, const StampedPose& b) { return a.stamp_s < b.stamp_s; });
+    std::stable_sort(
+        gt.poses.begin(), gt.poses.end(),
+        [](const StampedPose& a, const StampedPose& b) { return a.stamp_s < b.stamp_s; });
     log::warning(file.string() +
                  ": the frames are not listed in time order; they are used sorted by depth time "
                  "stamp");

@@ -44,14 +44,18 @@ std::optional<std::uint64_t> availableMemoryBytes() {
     const std::string suffix(ptr, text.data() + text.size());
     const double scale = suffix.empty()                   ? 1.0
                          : suffix == "k" || suffix == "K" ? 1e3
-                         : suffix == "M"                  ? 1e6
-                         : suffix == "G"                  ? 1e9
+                         : suffix == "m" || suffix == "M" ? 1e6
+                         : suffix == "g" || suffix == "G" ? 1e9
                                                           : -1.0;
-    if (error != std::errc() || scale < 0.0 || !(value > 0.0) || !std::isfinite(value)) {
+    const double bytes = value * scale;
+    // Whole bytes from 1 up to 2^63: anything else is a typo, never "no memory" or "unlimited".
+    if (error != std::errc() || scale < 0.0 || !std::isfinite(bytes) || bytes < 1.0 ||
+        bytes > 9.2e18) {
       throw std::invalid_argument(std::string(kMemoryLimitEnv) + "='" + text +
-                                  "' is not a size in bytes (e.g. 2000000000 or 2G)");
+                                  "' is not a size in bytes from 1 to 9.2e18 (e.g. 2000000000 or "
+                                  "2G; k, M and G are powers of 1000)");
     }
-    return static_cast<std::uint64_t>(value * scale);
+    return static_cast<std::uint64_t>(bytes);
   }
   std::optional<std::uint64_t> available = memAvailable();
   const auto lower = [&available](std::uint64_t left) {
@@ -83,7 +87,7 @@ std::string availableMemoryText(std::uint64_t available) {
   const char* limit = std::getenv(kMemoryLimitEnv);
   return "the " + bytesText(available) +
          (limit != nullptr && *limit != '\0' ? std::string(" ") + kMemoryLimitEnv + " allows"
-                                              : std::string(" this machine has free"));
+                                             : std::string(" this machine has free"));
 }
 
 std::string bytesText(std::uint64_t bytes) {

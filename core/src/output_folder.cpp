@@ -1,5 +1,7 @@
 #include "objscan/core/output_folder.h"
 
+#include "objscan/core/log.h"
+
 #include <fcntl.h>
 #include <sys/file.h>
 #include <sys/stat.h>
@@ -70,6 +72,14 @@ OutputFolderLock::OutputFolderLock(const fs::path& out) {
     const int error = errno;
     const std::string holder = error == EWOULDBLOCK ? holderOf(fd) : std::string();
     ::close(fd);
+    if (error == EBADF || error == ENOLCK || error == EOPNOTSUPP || error == ENOSYS ||
+        error == EINVAL) {
+      // File systems that cannot lock a folder (NFS emulates flock with fcntl locks, which need
+      // a file open for writing): go on unlocked rather than refuse every run there.
+      log::warning(out.string() + ": cannot lock the folder on this file system (" +
+                   std::strerror(error) + "); make sure no other objscan run writes into it");
+      return;
+    }
     if (error == EWOULDBLOCK) {
       throw FolderBusyError(
           out, "another objscan run" + (holder.empty() ? std::string() : " (" + holder + ")") +

@@ -43,30 +43,6 @@ namespace fs = std::filesystem;
 constexpr std::size_t kAnnouncedVertices = 1'000'000;
 constexpr double kSecondsPerVertex = 6.7e-6;
 
-/// Refuses, before any work, scenes whose discovery would not fit in memory. The scene being
-/// segmented and measured takes about 0.6-0.75 kB per vertex at 0.2-2.7 M vertices (peak RSS of
-/// `objscan discover` on TUM fr2/desk fused at 5.9, 3 and 2 mm) and more on larger meshes (a
-/// 13 M-vertex mesh failed past 16 GB, 1.2 kB per vertex): 1 kB per vertex of the largest
-/// scene, and 150 bytes per vertex of every scene for what is kept of each. Where the estimate
-/// is short, std::bad_alloc still ends in one error line (app/main.cpp).
-void requireMemoryFor(const std::vector<SceneInput>& inputs) {
-  std::uint64_t largest = 0, total = 0;
-  for (const SceneInput& input : inputs) {
-    largest = std::max<std::uint64_t>(largest, input.mesh.positions.size());
-    total += input.mesh.positions.size();
-  }
-  const std::uint64_t needed = 1000 * largest + 150 * total;
-  const std::optional<std::uint64_t> available = availableMemoryBytes();
-  if (!available || needed <= *available) return;
-  throw std::runtime_error(
-      "discovery of " + std::to_string(inputs.size()) +
-      (inputs.size() == 1 ? " scene" : " scenes") + " (the largest " + std::to_string(largest) +
-      " vertices) needs about " + bytesText(needed) + ", more than " +
-      availableMemoryText(*available) +
-      ": fuse with a larger --voxel-size (twice the size, about a quarter of the vertices) or "
-      "give fewer scenes at once");
-}
-
 fs::path meshOf(const fs::path& argument) {
   std::error_code ec;
   const fs::file_type type = fs::status(argument, ec).type();
@@ -378,6 +354,24 @@ fs::path defaultCatalogPath() {
   fs::create_directories(dir, ec);
   if (ec) throw OutputError(dir, "cannot create the catalog's folder: " + ec.message());
   return dir / "catalog.sqlite";
+}
+
+void requireMemoryFor(const std::vector<SceneInput>& inputs) {
+  std::uint64_t largest = 0, total = 0;
+  for (const SceneInput& input : inputs) {
+    largest = std::max<std::uint64_t>(largest, input.mesh.positions.size());
+    total += input.mesh.positions.size();
+  }
+  const std::uint64_t needed = 1000 * largest + 150 * total;
+  const std::optional<std::uint64_t> available = availableMemoryBytes();
+  if (!available || needed <= *available) return;
+  throw std::runtime_error(
+      "discovery of " + std::to_string(inputs.size()) +
+      (inputs.size() == 1 ? " scene" : " scenes") + " (the largest " + std::to_string(largest) +
+      " vertices) needs about " + bytesText(needed) + ", more than " +
+      availableMemoryText(*available) +
+      ": fuse with a larger --voxel-size (twice the size, about a quarter of the vertices) or "
+      "give fewer scenes at once");
 }
 
 SceneDiscovery discoverScenes(std::vector<SceneInput> inputs,

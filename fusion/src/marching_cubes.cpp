@@ -184,7 +184,6 @@ TriangleMesh extractMesh(const TsdfVolume& volume_in, const std::string& progres
   tbb::parallel_for(
       tbb::blocked_range<std::size_t>(0, block_count),
       [&](const tbb::blocked_range<std::size_t>& r) {
-        progress.advance(r.size());
         for (std::size_t i = r.begin(); i != r.end(); ++i) {
           const Neighbourhood n = neighbourhood(i);
           BlockVertices& out = per_block[i];
@@ -215,6 +214,7 @@ TriangleMesh extractMesh(const TsdfVolume& volume_in, const std::string& progres
             }
           }
         }
+        progress.advance(r.size());
       });
   std::vector<std::int32_t> first_vertex(block_count + 1, 0);
   for (std::size_t i = 0; i < block_count; ++i) {
@@ -227,7 +227,6 @@ TriangleMesh extractMesh(const TsdfVolume& volume_in, const std::string& progres
   tbb::parallel_for(
       tbb::blocked_range<std::size_t>(0, block_count),
       [&](const tbb::blocked_range<std::size_t>& r) {
-        progress.advance(r.size());
         for (std::size_t i = r.begin(); i != r.end(); ++i) {
           const Neighbourhood n = neighbourhood(i);
           for (int z = 0; z < kBlockSide; ++z) {
@@ -263,6 +262,7 @@ TriangleMesh extractMesh(const TsdfVolume& volume_in, const std::string& progres
             }
           }
         }
+        progress.advance(r.size());
       });
 
   TriangleMesh mesh;

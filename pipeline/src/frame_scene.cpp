@@ -7,6 +7,7 @@
 
 #include "objscan/capture/virtual_sensor.h"
 #include "objscan/core/error.h"
+#include "objscan/core/log.h"
 #include "objscan/discovery/catalog.h"
 
 namespace objscan::pipeline {
@@ -82,6 +83,12 @@ discovery::SceneInput sceneOfFrame(const std::string& source, std::size_t index,
     frames = openFrameSource(source, all);
   } else {
     frames = openAtFrame(indexed, source, index, options);
+  }
+  if (frames->info().intrinsics_assumed) {
+    log::warning("the camera intrinsics of " + source +
+                 " are ASSUMED: " + frames->info().intrinsics_origin +
+                 "; a different camera makes the scene the wrong size and shape. Add the "
+                 "recording's calibration or pass --intrinsics FILE");
   }
   const std::size_t skip = sensor ? index : 0;
   for (std::size_t i = 0;; ++i) {

@@ -1,5 +1,6 @@
 #include "objscan/pipeline/fuse.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <memory>
@@ -99,6 +100,7 @@ FusedScene fuseSource(const FuseOptions& options, const FuseLimits& limits) {
     // times the volume). Fusion stops, and keeps what it has, before that outgrows the machine.
     const std::optional<std::uint64_t> memory = availableMemoryBytes();
     bool memory_warned = false;
+    double last_peak = 0.0;
     ProgressBar progress(limits.progress_label, total);
     std::size_t read = 0;
     std::optional<double> last_stamp_s;
@@ -168,19 +170,25 @@ FusedScene fuseSource(const FuseOptions& options, const FuseLimits& limits) {
       if (memory) {
         const double volume = static_cast<double>(fusion->volume().memoryBytes());
         const double peak = kPeakPerVolumeByte * volume + kFusionBaseBytes;
-        const double budget = 0.9 * static_cast<double>(*memory);
-        if (peak > budget) {
-          out.sensor_lost = "fusion stopped at frame " + std::to_string(frame.index) +
-                            ": the volume holds " + bytesText(static_cast<std::uint64_t>(volume)) +
-                            " at " + voxelText(options.config.volume.voxel_size_m) +
-                            " voxels, and meshing it needs " + "about " +
-                            bytesText(static_cast<std::uint64_t>(peak)) + ", more than " +
-                            availableMemoryText(*memory) + "; a larger --voxel-size needs less " +
-                            "(twice the size, about a quarter)";
+        // Stop while the frames fused so far can still be meshed: before the next frame, if it
+        // grows the volume as much as this one did, would take the peak past what is free.
+        // (The first frame fills a whole view at once; its growth says nothing of the next's.)
+        const double next_peak = last_peak > 0.0 ? peak + std::max(0.0, peak - last_peak) : peak;
+        last_peak = peak;
+        const double budget = static_cast<double>(*memory);
+        if (next_peak > budget) {
+          out.sensor_lost =
+              "fusion stopped at frame " + std::to_string(frame.index) + ": the volume holds " +
+              bytesText(static_cast<std::uint64_t>(volume)) + " at " +
+              voxelText(options.config.volume.voxel_size_m) + " voxels; meshing it needs about " +
+              bytesText(static_cast<std::uint64_t>(peak)) + ", and after another frame about " +
+              bytesText(static_cast<std::uint64_t>(next_peak)) + ", more than " +
+              availableMemoryText(*memory) + "; a larger --voxel-size needs less " +
+              "(twice the size, about a quarter)";
           out.stopped_by = "memory";
           break;
         }
-        if (!memory_warned && peak > 0.5 * budget) {
+        if (!memory_warned && next_peak > 0.5 * budget) {
           memory_warned = true;
           log::warning("the volume already needs about half of " + availableMemoryText(*memory) +
                        " at " + voxelText(options.config.volume.voxel_size_m) +

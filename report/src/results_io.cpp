@@ -119,22 +119,35 @@ Json objectPoseJson(const HypothesisRecord& h) {
     }
     pose.push_back(row);
   }
-  Json j = {{"rank", h.rank},
-            {"scene", h.scene},
-            {"mesh", fs::path(h.file).filename().string()},
-            {"vertex_count", h.vertex_count.value_or(h.vertices.size())},
-            {"frame",
-             "T_W_O maps the object frame (origin at the box centre, axes along the box's, "
-             "right-handed) to the scene mesh's world frame; metres; rows of a 4x4 matrix"},
-            {"T_W_O", pose},
-            {"box",
-             {{"centre", vectorJson(box.centre)},
-              {"axes",
-               {vectorJson(rotation.col(0)), vectorJson(rotation.col(1)),
-                vectorJson(rotation.col(2))}},
-              {"extents", vectorJson(box.extents)}}}};
+  Json j = {
+      {"rank", h.rank},
+      {"scene", h.scene},
+      {"mesh", fs::path(h.file).filename().string()},
+      {"vertex_count", h.vertex_count.value_or(h.vertices.size())},
+      {"frame",
+       "T_W_O maps the object frame (origin at the box centre, axes along the box's, "
+       "right-handed) to the scene mesh's world frame; metres; rows of a 4x4 matrix"},
+      {"T_W_O", pose},
+      {"box",
+       {{"centre", vectorJson(box.centre)},
+        {"axes",
+         {vectorJson(rotation.col(0)), vectorJson(rotation.col(1)), vectorJson(rotation.col(2))}},
+        {"extents", vectorJson(box.extents)}}}};
   if (h.score) j["score"] = *h.score;
   return j;
+}
+
+/// Each object's mesh file and pose file into the staging folder `partial`.
+void writeObjects(const fs::path& partial, const Hypotheses& hypotheses,
+                  const discovery::SceneDiscovery& run, MeshFormat format) {
+  for (std::size_t i = 0; i < run.ranked.size(); ++i) {
+    const TriangleMesh& mesh = run.scenes[run.ranked[i].scene].mesh;
+    const HypothesisRecord& h = hypotheses.hypotheses.at(i);
+    const fs::path file = partial / fs::path(h.file).filename();
+    writeFileAtomically(file,
+                        encodeMesh(mesh.subset(run.ranked[i].hypothesis.segment.vertices), format));
+    if (h.box) writeJson(partial / rankFileName(h.rank, ".json"), objectPoseJson(h));
+  }
 }
 
 /// `name` relative to `results_dir` and absolute when it names a file; as it is otherwise.
@@ -190,8 +203,8 @@ Hypotheses hypothesesFrom(const discovery::SceneDiscovery& run, const std::strin
     r.scale = h.segment.scale;
     r.vertices = h.segment.vertices;
     r.vertex_count = h.segment.vertices.size();
-    r.file = std::string(kObjectsFolder) + "/" +
-             rankFileName(i + 1, extensionOf(object_format).c_str());
+    r.file =
+        std::string(kObjectsFolder) + "/" + rankFileName(i + 1, extensionOf(object_format).c_str());
     out.hypotheses.push_back(std::move(r));
   }
   return out;
@@ -200,13 +213,12 @@ Hypotheses hypothesesFrom(const discovery::SceneDiscovery& run, const std::strin
 void writeDiscovery(const fs::path& dir, const Hypotheses& hypotheses,
                     const discovery::SceneDiscovery& run, MeshFormat format) {
   const fs::path partial = freshPartialFolder(dir, kObjectsFolder);
-  for (std::size_t i = 0; i < run.ranked.size(); ++i) {
-    const TriangleMesh& mesh = run.scenes[run.ranked[i].scene].mesh;
-    const HypothesisRecord& h = hypotheses.hypotheses.at(i);
-    const fs::path file = partial / fs::path(h.file).filename();
-    writeFileAtomically(file,
-                        encodeMesh(mesh.subset(run.ranked[i].hypothesis.segment.vertices), format));
-    if (h.box) writeJson(partial / rankFileName(h.rank, ".json"), objectPoseJson(h));
+  try {
+    writeObjects(partial, hypotheses, run, format);
+  } catch (...) {
+    std::error_code ec;
+    fs::remove_all(partial, ec);  // a failed run leaves the old objects/ and nothing half-made
+    throw;
   }
   writeHypotheses(dir / kHypothesesFile, hypotheses);
   swapInFolder(dir, kObjectsFolder);

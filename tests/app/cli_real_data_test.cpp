@@ -22,6 +22,19 @@ TEST(CliRealData, InfoOnYcbMugReports8188VerticesAnd16384Faces) {
   EXPECT_NE(r.out.find("ignored       vertex.s, vertex.t"), std::string::npos) << r.out;
 }
 
+TEST(CliRealData, InfoDescribesASevenScenesFolderAsFuseReadsIt) {
+  // Issue 18: info refused the 7-Scenes folders fuse accepts.
+  const std::string folder = std::string(OBJSCAN_DATA_DIR) + "/7scenes_300";
+  const testing::ProcessResult r = testing::runProcess({OBJSCAN_EXE, "info", folder});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("type          recording (7-Scenes folder)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("frames        300"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("fx 585.0 fy 585.0 cx 320.0 cy 240.0, 640x480 px"), std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("depth units   16-bit millimetres"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("ground truth  300 poses"), std::string::npos) << r.out;
+}
+
 /// Two real single-view Kinect scans of mOSD's learn split (both in the half objscan's defaults
 /// were not tuned on): three stacked boxes, and eight object parts of cylinders and boxes.
 /// Evaluated on their label fields, object parts counted separately as the database intends.

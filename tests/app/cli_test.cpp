@@ -11,6 +11,8 @@
 namespace objscan {
 namespace {
 
+namespace fs = std::filesystem;
+using testing::expectOneErrorLine;
 using testing::ProcessResult;
 using testing::TempDir;
 using testing::writeBytes;
@@ -74,6 +76,36 @@ TEST(Cli, CompletionAndManPageComeFromTheOptionsThemselves) {
     EXPECT_NE(page.out.find(text), std::string::npos) << text;
   }
   EXPECT_EQ(objscan({"--completion", "tcsh"}).exit_code, 2);
+}
+
+TEST(Cli, UsageErrorsPointToTheCommandsOwnHelpAndSayWhatIsWanted) {
+  // Issue 18's paper cuts and defect 8, one by one.
+  TempDir dir;
+  const ProcessResult help = objscan({"help", "fuse"});
+  EXPECT_EQ(help.exit_code, 0) << help.err;
+  EXPECT_NE(help.out.find("Usage: objscan fuse [OPTIONS] source"), std::string::npos) << help.out;
+  EXPECT_NE(help.out.find("Examples:"), std::string::npos) << help.out;
+  expectOneErrorLine(objscan({"help", "fusion"}), 2, "help: no command 'fusion'");
+  expectOneErrorLine(objscan({"fuse"}), 2, "source is required (run 'objscan fuse --help')");
+  const std::string out = (dir / "out").string();
+  expectOneErrorLine(objscan({"fuse", "synth:1", "--out", out, "--start", "-1"}), 2,
+                     "--start: must be a whole number of at least 0 (got '-1')");
+  expectOneErrorLine(objscan({"fuse", "synth:1", "--out", out, "--start", "99999999999999999999"}),
+                     2, "--start: must be a whole number of at least 0");
+  expectOneErrorLine(objscan({"scan", "synth:1", "--out", out, "--seconds", "-3"}), 2,
+                     "--seconds: must be a number above 0 (got '-3')");
+  // A symbolic link loop is bad input named in one line, not the library's text and exit 1.
+  fs::create_symlink(dir / "b", dir / "a");
+  fs::create_symlink(dir / "a", dir / "b");
+  for (const char* command : {"discover", "info"}) {
+    std::vector<std::string> args = {command, (dir / "a").string()};
+    if (std::string(command) == "discover") args.insert(args.end(), {"--out", out});
+    const ProcessResult r = objscan(args);
+    expectOneErrorLine(r, 2, (dir / "a").string() + ": cannot access: Too many levels of symbolic "
+                             "links");
+    EXPECT_EQ(r.err.find("filesystem error"), std::string::npos) << r.err;
+  }
+  EXPECT_FALSE(fs::exists(out));
 }
 
 TEST(Cli, SynthWritesARecordingThatInfoReads) {

@@ -215,6 +215,17 @@ TEST(DiscoverCli, ObjectsInEveryFormatWithAPoseThatPlacesThem) {
   expectOneErrorLine(objscan({"discover", (dir / "scene.ply").string(), "--out",
                               (dir / "x").string(), "--object-format", "fbx"}),
                      2, "--object-format");
+  // Under a file-size limit the objects cannot be written: exit 1, and the previous objects/
+  // stays as it was, with no objects.partial/ beside it.
+  const std::size_t before = testing::entryCount(dir / "glb" / "objects");
+  expectOneErrorLine(
+      testing::runProcess({"/usr/bin/prlimit", "--fsize=2000", OBJSCAN_EXE, "discover",
+                           "--min-size", "200", (dir / "scene.ply").string(), "--out",
+                           (dir / "glb").string(), "--no-catalog", "--object-format", "glb"},
+                          {}),
+      1, "File too large");
+  EXPECT_EQ(testing::entryCount(dir / "glb" / "objects"), before);
+  EXPECT_FALSE(fs::exists(dir / "glb" / "objects.partial"));
 }
 
 TEST(DiscoverCli, RenderFindsTheSceneFromAnyWorkingDirectoryAndAfterAMove) {
@@ -241,6 +252,11 @@ TEST(DiscoverCli, RenderFindsTheSceneFromAnyWorkingDirectoryAndAfterAMove) {
   fs::rename(dir / "moved" / "results", dir / "results");
   fs::rename(dir / "moved", dir / "work");
   EXPECT_EQ(objscan({"render", (dir / "results").string()}).exit_code, 0);
+  // A different mesh where the relative path points: the absolute path's, which fits, is used.
+  fs::create_directories(dir / "scenes");
+  writePly(dir / "scenes" / "scene.ply", testing::makeCube());
+  EXPECT_EQ(objscan({"render", (dir / "results").string()}).exit_code, 0);
+  fs::remove_all(dir / "scenes");
   // Neither: one error line naming both places.
   fs::remove(dir / "work" / "scenes" / "scene.ply");
   expectOneErrorLine(objscan({"render", (dir / "results").string()}), 2,

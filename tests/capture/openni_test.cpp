@@ -137,7 +137,9 @@ TempDir* OpenNI::dir_ = nullptr;
 
 TEST_F(OpenNI, RecordThenReplayIsPixelIdenticalForADatasetFolder) {
   const fs::path oni = out_.path() / "session.oni";
-  const ProcessResult r = record("virtual:" + folder().string(), oni);
+  // 20 Hz, as the other tests that need every frame: at 30 Hz a loaded machine (the whole suite at
+  // -j2) once dropped a frame here.
+  const ProcessResult r = record("virtual:" + folder().string() + "?fps=20", oni);
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("24 depth, 24 colour"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("dropped       0"), std::string::npos) << r.out;

@@ -26,7 +26,9 @@ TEST(Memory, TheEnvironmentLimitReplacesWhatTheMachineReports) {
   EXPECT_EQ(availableMemoryText(2'000'000'000), "the 2.0 GB OBJSCAN_MEMORY_LIMIT allows");
   ASSERT_EQ(::setenv(kMemoryLimitEnv, "1500000", 1), 0);
   EXPECT_EQ(availableMemoryBytes(), std::optional<std::uint64_t>(1'500'000));
-  for (const char* bad : {"lots", "-1G", "2T", "0"}) {
+  ASSERT_EQ(::setenv(kMemoryLimitEnv, "3g", 1), 0);
+  EXPECT_EQ(availableMemoryBytes(), std::optional<std::uint64_t>(3'000'000'000));
+  for (const char* bad : {"lots", "-1G", "2T", "0", "0.5", "1e30", "18446744073709551615"}) {
     ASSERT_EQ(::setenv(kMemoryLimitEnv, bad, 1), 0);
     EXPECT_THROW(availableMemoryBytes(), std::invalid_argument) << bad;
   }

@@ -52,6 +52,12 @@ struct SceneReading {
   OrganizedMeshConfig meshing;
 };
 
+/// Throws std::runtime_error, with the estimate, the memory free and what to change, when
+/// discovering `inputs` would not fit in memory (availableMemoryBytes): 1 kB per vertex of the
+/// largest scene and 150 bytes per vertex of all, measured (scenes.cpp). discoverScenes calls it
+/// first; a command calls it before it makes its output folder.
+void requireMemoryFor(const std::vector<SceneInput>& inputs);
+
 /// Reads a scene as the command line names it: a mesh file (.ply), a folder holding
 /// fused/mesh.ply or mesh.ply, or a camera's point cloud (.pcd, organized or put back on its
 /// pixel grid), meshed by joining neighbouring pixels (meshOrganized). Throws InputError naming
