@@ -85,9 +85,14 @@ std::optional<std::uint64_t> availableMemoryBytes() {
 
 std::string availableMemoryText(std::uint64_t available) {
   const char* limit = std::getenv(kMemoryLimitEnv);
-  return "the " + bytesText(available) +
-         (limit != nullptr && *limit != '\0' ? std::string(" ") + kMemoryLimitEnv + " allows"
-                                             : std::string(" this machine has free"));
+  if (limit != nullptr && *limit != '\0') {
+    return "the " + bytesText(available) + " " + kMemoryLimitEnv + " allows";
+  }
+  struct rlimit address_space {};
+  if (::getrlimit(RLIMIT_AS, &address_space) == 0 && address_space.rlim_cur != RLIM_INFINITY) {
+    return "the " + bytesText(available) + " free within this process's limits (ulimit -v)";
+  }
+  return "the " + bytesText(available) + " this machine has free";
 }
 
 std::string bytesText(std::uint64_t bytes) {

@@ -228,6 +228,21 @@ TEST_F(ScanCli, RenderAgainReplacesTheRendersWithTheNewOptions) {
   EXPECT_EQ(options["source"], std::vector<std::string>{scene_.string()});
 }
 
+TEST_F(ScanCli, PicturesThatWouldNotFitInMemoryAreRefusedBeforeRendering) {
+  // OSMesa crashed (SIGSEGV, exit 139) when it ran out of memory; the pictures are refused first.
+  ASSERT_EQ(scan_.exit_code, 0) << scan_.err;
+  const fs::path copy = *dir_ / "small_machine";
+  fs::create_directories(copy);
+  for (const char* name : {"mesh.ply", "hypotheses.json", "trajectory.txt"}) {
+    fs::copy_file(out_ / name, copy / name);
+  }
+  testing::ProcessOptions small;
+  small.env = {"OBJSCAN_MEMORY_LIMIT=100M"};
+  expectOneErrorLine(testing::runProcess({OBJSCAN_EXE, "render", copy.string()}, small), 1,
+                     "more than the 100 MB OBJSCAN_MEMORY_LIMIT allows");
+  EXPECT_FALSE(fs::exists(copy / "renders"));
+}
+
 TEST_F(ScanCli, RenderNamesWhatIsMissing) {
   ASSERT_EQ(scan_.exit_code, 0) << scan_.err;
   const fs::path missing = *dir_ / "nothing_here";
