@@ -19,11 +19,19 @@ namespace {
 
 std::string errnoText() { return std::strerror(errno); }
 
-/// A name next to `path` that no other writer picks: "<name>.tmp-<pid>-<random>".
+/// A name next to `path` that no other writer picks: "<name>.tmp-<pid>-<random>", or
+/// ".objscan.tmp-<pid>-<random>" when that would pass the file system's 255-byte name limit (a
+/// file named near the limit can still be written).
 fs::path temporarySibling(const fs::path& path) {
   static thread_local std::mt19937_64 rng{std::random_device{}()};
+  const std::string suffix =
+      ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(rng() % 1000000000ULL);
+  constexpr std::size_t kMaxNameBytes = 255;
+  if (path.filename().string().size() + suffix.size() > kMaxNameBytes) {
+    return path.parent_path() / (".objscan" + suffix);
+  }
   fs::path tmp = path;
-  tmp += ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(rng() % 1000000000ULL);
+  tmp += suffix;
   return tmp;
 }
 

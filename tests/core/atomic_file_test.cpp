@@ -58,6 +58,16 @@ TEST(AtomicFile, FailedRenameRemovesTheTemporary) {
   EXPECT_THROW(writeFileAtomically(dir / "missing" / "f", "x"), OutputError);
 }
 
+TEST(AtomicFile, AFileNamedNearTheNameLimitIsWritten) {
+  // Its temporary name "<name>.tmp-PID-N" would pass 255 bytes (record --out with a long name
+  // wrote the .oni and then failed on its sidecar).
+  testing::TempDir dir;
+  const std::filesystem::path file = dir / (std::string(250, 'a') + ".json");
+  writeFileAtomically(file, "{}");
+  EXPECT_EQ(readWholeFile(file), "{}");
+  EXPECT_EQ(testing::entryCount(dir.path()), 1u);
+}
+
 TEST(AtomicFile, ReadWholeFileErrorsNameThePath) {
   testing::TempDir dir;
   testing::expectInputError([&] { readWholeFile(dir / "absent"); }, dir / "absent",
