@@ -68,7 +68,6 @@ std::optional<std::uint64_t> availableMemoryBytes() {
   struct rlimit limit {};
   if (::getrlimit(RLIMIT_AS, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY) {
     std::ifstream status("/proc/self/status");
-    std::string key;
     std::uint64_t kb = 0;
     std::string line;
     while (std::getline(status, line)) {

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <bit>
-#include <charconv>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -11,24 +10,18 @@
 
 #include <nlohmann/json.hpp>
 
+#include "byte_writing.h"
 #include "objscan/core/ply_io.h"
 
 namespace objscan {
 namespace {
 
+using byte_writing::putText;
+
+/// Little-endian, as STL and glTF store every number.
 template <class T>
 void put(std::string& out, T value) {
-  char bytes[sizeof(T)];
-  std::memcpy(bytes, &value, sizeof(T));  // little-endian hosts only (static_assert below)
-  out.append(bytes, sizeof(T));
-}
-static_assert(std::endian::native == std::endian::little, "the binary writers assume it");
-
-/// The shortest text that reads back to the same float.
-void putText(std::string& out, float value) {
-  char text[32];
-  const auto r = std::to_chars(text, text + sizeof text, value);
-  out.append(text, r.ptr);
+  byte_writing::putBinary(out, value, std::endian::native == std::endian::big);
 }
 
 std::string encodeObj(const TriangleMesh& mesh) {

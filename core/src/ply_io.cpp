@@ -26,6 +26,7 @@
 #include <system_error>
 #include <type_traits>
 
+#include "byte_writing.h"
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/error.h"
 #include "objscan/core/log.h"
@@ -694,20 +695,8 @@ PlyHeader publicHeader(const ParsedHeader& parsed) {
 // ---------------------------------------------------------------------------------------------
 // Writing
 
-template <class T>
-void putBinary(std::string& out, T v, bool swap) {
-  char bytes[sizeof(T)];
-  std::memcpy(bytes, &v, sizeof(T));
-  if (swap) std::reverse(bytes, bytes + sizeof(T));
-  out.append(bytes, sizeof(T));
-}
-
-template <class T>
-void putText(std::string& out, T v) {
-  char buf[64];
-  const auto result = std::to_chars(buf, buf + sizeof buf, v);  // shortest exact representation
-  out.append(buf, result.ptr);
-}
+using byte_writing::putBinary;
+using byte_writing::putText;
 
 }  // namespace
 

@@ -28,6 +28,14 @@ void writeJson(const fs::path& file, const Json& doc) {
 
 Json vectorJson(const Eigen::Vector3f& v) { return {v.x(), v.y(), v.z()}; }
 
+/// A box as hypotheses.json and objects/rank_NNN.json hold it: centre, axes as rows, extents.
+Json boxJson(const OrientedBox& box) {
+  return {{"centre", vectorJson(box.centre)},
+          {"axes",
+           {vectorJson(box.axes.col(0)), vectorJson(box.axes.col(1)), vectorJson(box.axes.col(2))}},
+          {"extents", vectorJson(box.extents)}};
+}
+
 /// null: unknown (recurrence without another scene to compare with).
 Json measuresJson(const discovery::ShapeMeasures& m) {
   Json j;
@@ -108,31 +116,25 @@ namespace {
 
 /// objects/rank_NNN.json: what one object file needs beside it to be placed in the scene.
 Json objectPoseJson(const HypothesisRecord& h) {
-  const OrientedBox& box = *h.box;
-  Eigen::Matrix3f rotation = box.axes;
-  if (rotation.determinant() < 0.0f) rotation.col(2) = -rotation.col(2);  // right-handed
+  OrientedBox box = *h.box;
+  if (box.axes.determinant() < 0.0f) box.axes.col(2) = -box.axes.col(2);  // right-handed
   Json pose = Json::array();
   for (int r = 0; r < 4; ++r) {
     Json row = Json::array();
     for (int c = 0; c < 4; ++c) {
-      row.push_back(r == 3 ? (c == 3 ? 1.0f : 0.0f) : c == 3 ? box.centre[r] : rotation(r, c));
+      row.push_back(r == 3 ? (c == 3 ? 1.0f : 0.0f) : c == 3 ? box.centre[r] : box.axes(r, c));
     }
     pose.push_back(row);
   }
-  Json j = {
-      {"rank", h.rank},
-      {"scene", h.scene},
-      {"mesh", fs::path(h.file).filename().string()},
-      {"vertex_count", h.vertex_count.value_or(h.vertices.size())},
-      {"frame",
-       "T_W_O maps the object frame (origin at the box centre, axes along the box's, "
-       "right-handed) to the scene mesh's world frame; metres; rows of a 4x4 matrix"},
-      {"T_W_O", pose},
-      {"box",
-       {{"centre", vectorJson(box.centre)},
-        {"axes",
-         {vectorJson(rotation.col(0)), vectorJson(rotation.col(1)), vectorJson(rotation.col(2))}},
-        {"extents", vectorJson(box.extents)}}}};
+  Json j = {{"rank", h.rank},
+            {"scene", h.scene},
+            {"mesh", fs::path(h.file).filename().string()},
+            {"vertex_count", h.vertex_count.value_or(h.vertices.size())},
+            {"frame",
+             "T_W_O maps the object frame (origin at the box centre, axes along the box's, "
+             "right-handed) to the scene mesh's world frame; metres; rows of a 4x4 matrix"},
+            {"T_W_O", pose},
+            {"box", boxJson(box)}};
   if (h.score) j["score"] = *h.score;
   return j;
 }
@@ -168,13 +170,11 @@ std::pair<std::string, std::string> sceneReference(const std::string& name,
 Hypotheses hypothesesFrom(const discovery::SceneDiscovery& run, const std::string& model,
                           const fs::path& results_dir, MeshFormat object_format) {
   Hypotheses out;
-  std::vector<std::string> names;  // each scene's "mesh", for its hypotheses' "scene"
   out.scoring = Scoring{discovery::toString(run.scorer), model, run.normalised_over};
   out.catalog = catalogUseOf(run);
   for (const discovery::DiscoveredScene& scene : run.scenes) {
     SceneRecord r;
     std::tie(r.mesh, r.mesh_absolute) = sceneReference(scene.name, results_dir);
-    names.push_back(r.mesh);
     r.vertices = scene.mesh.positions.size();
     r.faces = scene.mesh.triangles.size();
     r.candidates = scene.candidates.segments.size();
@@ -197,7 +197,7 @@ Hypotheses hypothesesFrom(const discovery::SceneDiscovery& run, const std::strin
     HypothesisRecord r;
     r.rank = i + 1;
     r.score = h.score;
-    r.scene = names[run.ranked[i].scene];
+    r.scene = out.scenes[run.ranked[i].scene].mesh;
     r.measures = h.measures;
     r.box = boxOf(scene.mesh, h.segment);
     r.scale = h.segment.scale;
@@ -271,11 +271,7 @@ void writeHypotheses(const fs::path& file, const Hypotheses& hyp) {
     if (h.score) j["score"] = *h.score;
     if (h.scale) j["scale"] = *h.scale;
     if (h.box) {
-      j["box"] = {{"centre", vectorJson(h.box->centre)},
-                  {"axes",
-                   {vectorJson(h.box->axes.col(0)), vectorJson(h.box->axes.col(1)),
-                    vectorJson(h.box->axes.col(2))}},
-                  {"extents", vectorJson(h.box->extents)}};
+      j["box"] = boxJson(*h.box);
     }
     list.push_back(j);
   }
