@@ -170,6 +170,7 @@ Command addScanCommand(CLI::App& app) {
       ->check(positiveNumber())
       ->excludes(scan_frames);
   addFusionOptions(scan, scan_options.fuse);
+  addServeOptions(scan, scan_options.serve);
   scan->add_option("--record", state->record,
                    "Save the live sensor's raw stream to this .oni while scanning (depth "
                    "lossless; replayable however capture ends)");

@@ -112,6 +112,7 @@ Command addFuseCommand(CLI::App& app) {
       ->required();
   fuse->add_option("--out", options->out, "Folder for mesh.ply and trajectory.txt")->required();
   addFusionOptions(fuse, options->fuse);
+  addServeOptions(fuse, options->serve);
   return {fuse, [options, fuse] {
             options->settings = commandSettings(*fuse);
             return runFuse(*options);

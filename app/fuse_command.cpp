@@ -80,25 +80,50 @@ void addFusionSettings(report::Settings& settings, const pipeline::FusedScene& f
 }
 
 int runFuse(const FuseCommandOptions& options) {
+  // The server first: a port that cannot be had is refused before anything is opened or written.
+  LiveSettings live_settings;
+  live_settings.command = "fuse";
+  live_settings.source = options.fuse.source;
+  live_settings.results = options.out;
+  const std::unique_ptr<LiveRun> live = LiveRun::start(options.serve, live_settings);
   pipeline::FusedScene fused;
   OutputFolderLock lock;
-  {
-    StopSignals signals;
-    pipeline::FuseLimits limits;
-    limits.stop = &StopSignals::flag();
-    limits.after_open = [&options, &lock] { lock = prepareOutputFolder(options.out); };
-    fused = pipeline::fuseSource(options.fuse, limits);
+  try {
+    {
+      StopSignals signals;
+      pipeline::FuseLimits limits;
+      limits.stop = &StopSignals::flag();
+      limits.after_open = [&options, &lock] { lock = prepareOutputFolder(options.out); };
+      if (live) live->watch(limits);
+      fused = pipeline::fuseSource(options.fuse, limits);
+    }
+    if (live) live->stage("writing the mesh");
+    writeFused(options.out, fused);
+    report::Settings settings = options.settings;
+    addFusionSettings(settings, fused, options.fuse);
+    report::writeSettings(options.out / report::kSettingsFile, settings);
+  } catch (const std::exception& e) {
+    if (live) live->finish(LiveFinal{std::string("failed: ") + e.what(), true, {}, {}}, false);
+    throw;
   }
-  writeFused(options.out, fused);
-  report::Settings settings = options.settings;
-  addFusionSettings(settings, fused, options.fuse);
-  report::writeSettings(options.out / report::kSettingsFile, settings);
   printFuseSummary(fused, options.out);
   if (fused.stats.interrupted) {
     std::printf("stopped by    Ctrl-C / SIGTERM: the outputs hold the %zu frames fused before it\n",
                 fused.stats.frames_fused);
   }
-  return reportSensorLoss(fused.stats);
+  const int code = reportSensorLoss(fused.stats);
+  if (live) {
+    LiveFinal final;
+    final.outcome = fused.stats.interrupted ? "stopped by Ctrl-C: the mesh holds the frames fused"
+                    : fused.stats.sensor_lost.empty() ? "finished"
+                                                      : "sensor lost: " + fused.stats.sensor_lost;
+    final.failed = code != kExitSuccess;
+    final.files = {{"mesh", report::kMeshFile},
+                   {"trajectory", report::kTrajectoryFile},
+                   {"settings", report::kSettingsFile}};
+    live->finish(std::move(final), !fused.stats.interrupted);
+  }
+  return code;
 }
 
 }  // namespace objscan::app

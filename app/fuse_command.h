@@ -4,6 +4,7 @@
 
 #include "objscan/pipeline/fuse.h"
 #include "objscan/report/results.h"
+#include "serve.h"
 
 namespace objscan::app {
 
@@ -11,6 +12,7 @@ struct FuseCommandOptions {
   pipeline::FuseOptions fuse;
   std::filesystem::path out;
   report::Settings settings;  ///< the command line's, for OUT/settings.json
+  ServeOptions serve;         ///< --serve: the live page
 };
 
 /// Completes `settings` with what fusion resolved (the truncation used, the intrinsics and where

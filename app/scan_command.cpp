@@ -76,8 +76,8 @@ fs::path groundTruthOf(const ScanCommandOptions& options) {
 /// One scan: the results so far, in memory, and the timings of its stages.
 class ScanRun {
  public:
-  explicit ScanRun(const ScanCommandOptions& options)
-      : options_(options), out_(options.out), start_(SteadyClock::now()) {
+  ScanRun(const ScanCommandOptions& options, LiveRun* live)
+      : options_(options), out_(options.out), start_(SteadyClock::now()), live_(live) {
     results_.timings.emplace().source = options.source;
     results_.settings = options.settings;
   }
@@ -107,7 +107,9 @@ class ScanRun {
     limits.progress_label = "scan [1/4] fusing frames";
     limits.live_stop_ends_capture = true;
     limits.stop = &StopSignals::flag();
+    if (live_) live_->watch(limits);
     pipeline::FusedScene fused = pipeline::fuseSource(options_.fuse, limits);
+    if (live_) live_->stage("writing the mesh");
     const pipeline::FuseStats& s = fused.stats;
     stage("fuse", s.fuse_s);
     stage("mesh", s.mesh_s);
@@ -128,6 +130,7 @@ class ScanRun {
   discovery::SceneDiscovery discover(TriangleMesh mesh, const fs::path& truth,
                                      const discovery::SceneDiscoveryOptions& library) {
     log::info("scan [2/4] discovering objects");
+    if (live_) live_->stage("discovering objects");
     DiscoverCommandOptions options = options_.discover;
     options.out = out_;
     std::vector<discovery::SceneInput> scenes;
@@ -154,6 +157,7 @@ class ScanRun {
       return true;
     }
     log::info("scan [3/4] rendering pictures");
+    if (live_) live_->stage("rendering pictures");
     pipeline::PictureOptions pictures = options_.pictures;
     pictures.progress_label = "scan [3/4] rendering pictures";
     pictures.stop = &StopSignals::flag();
@@ -170,6 +174,7 @@ class ScanRun {
 
   fs::path reportAndTimings() {
     log::info("scan [4/4] writing the report");
+    if (live_) live_->stage("writing the report");
     const auto report_start = SteadyClock::now();
     finishTimings();  // the report shows the timings up to it
     report::writeSettings(out_ / report::kSettingsFile, *results_.settings);
@@ -209,7 +214,27 @@ class ScanRun {
   SteadyClock::time_point start_;
   report::ScanResults results_;  ///< everything written so far, and the timings
   std::string mesh_bytes_;       ///< mesh.ply's, until discovery has hashed them
+  LiveRun* live_;                ///< --serve's, or none
 };
+
+/// The final ranking for the live page: the first `shown` hypotheses.
+std::vector<LiveHypothesis> liveHypotheses(const discovery::SceneDiscovery& found,
+                                           std::size_t shown) {
+  std::vector<LiveHypothesis> out;
+  for (std::size_t i = 0; i < found.ranked.size() && i < shown; ++i) {
+    const discovery::Hypothesis& h = found.ranked[i].hypothesis;
+    out.push_back({static_cast<int>(i) + 1, h.score, h.segment.vertices.size(), h.segment.centroid,
+                   h.segment.extents});
+  }
+  return out;
+}
+
+/// What a stopped scan tells the page: it ends at once, showing what was written.
+LiveFinal stoppedFinal(const std::vector<std::string>& missing) {
+  std::string list;
+  for (const std::string& m : missing) list += (list.empty() ? "" : ", ") + m;
+  return LiveFinal{"stopped by Ctrl-C / SIGTERM; not produced: " + list, true, {}, {}};
+}
 
 }  // namespace
 
@@ -221,27 +246,59 @@ int runScan(ScanCommandOptions options) {
   options.pictures.validate();
   const fs::path truth = groundTruthOf(options);
   const discovery::SceneDiscoveryOptions library = sceneDiscoveryOptions(options.discover);
-  const OutputFolderLock lock = requireWritableFolder(options.out);
+  LiveSettings live_settings;
+  live_settings.command = "scan";
+  live_settings.source = options.source;
+  live_settings.results = options.out;
+  live_settings.discovery_config = options.discover.config;
+  // Before the folder is touched: a port that cannot be had leaves nothing behind.
+  const std::unique_ptr<LiveRun> live = LiveRun::start(options.serve, live_settings);
+  try {
+    const OutputFolderLock lock = requireWritableFolder(options.out);
 
-  StopSignals signals;
-  ScanRun run(options);
-  pipeline::FusedScene fused = run.fuse();
-  if (fused.stats.interrupted) {
-    // On a sensor, Ctrl-C is how capture ends: the scan goes on with what was fused.
-    if (!fused.stats.live) {
-      std::vector<std::string> missing = {"hypotheses.json", "objects/", "renders/", "report.html"};
-      if (!truth.empty()) missing.insert(missing.begin() + 2, "evaluation.json");
-      return run.stopHere(missing);
+    StopSignals signals;
+    ScanRun run(options, live.get());
+    const auto stop = [&](std::vector<std::string> missing) {
+      if (live) live->finish(stoppedFinal(missing), false);
+      return run.stopHere(std::move(missing));
+    };
+    pipeline::FusedScene fused = run.fuse();
+    if (fused.stats.interrupted) {
+      // On a sensor, Ctrl-C is how capture ends: the scan goes on with what was fused.
+      if (!fused.stats.live) {
+        std::vector<std::string> missing = {"hypotheses.json", "objects/", "renders/",
+                                            "report.html"};
+        if (!truth.empty()) missing.insert(missing.begin() + 2, "evaluation.json");
+        return stop(missing);
+      }
+      std::printf("capture       ended by Ctrl-C after %zu frames\n", fused.stats.frames_read);
     }
-    std::printf("capture       ended by Ctrl-C after %zu frames\n", fused.stats.frames_read);
+    const discovery::SceneDiscovery found = run.discover(std::move(fused.mesh), truth, library);
+    if (StopSignals::stopRequested()) return stop({"renders/", "report.html"});
+    if (!run.pictures(found.scenes.at(0).mesh)) return stop({"renders/", "report.html"});
+    const fs::path report = run.reportAndTimings();
+    std::printf("report        %s\n", report.c_str());
+    // A sensor lost mid-capture still gives every output, from the frames before it, and exit 1.
+    const int code = reportSensorLoss(fused.stats);
+    if (live) {
+      LiveFinal final;
+      final.outcome = code == kExitSuccess ? "finished: " + std::to_string(found.ranked.size()) +
+                                                 " hypotheses ranked"
+                                           : "sensor lost: " + fused.stats.sensor_lost;
+      final.failed = code != kExitSuccess;
+      final.hypotheses = liveHypotheses(found, live_settings.shown_hypotheses);
+      final.files = {{"report", report::kReportFile},
+                     {"mesh", report::kMeshFile},
+                     {"hypotheses", report::kHypothesesFile},
+                     {"trajectory", report::kTrajectoryFile},
+                     {"timings", report::kTimingsFile}};
+      live->finish(std::move(final));
+    }
+    return code;
+  } catch (const std::exception& e) {
+    if (live) live->finish(LiveFinal{std::string("failed: ") + e.what(), true, {}, {}}, false);
+    throw;
   }
-  const discovery::SceneDiscovery found = run.discover(std::move(fused.mesh), truth, library);
-  if (StopSignals::stopRequested()) return run.stopHere({"renders/", "report.html"});
-  if (!run.pictures(found.scenes.at(0).mesh)) return run.stopHere({"renders/", "report.html"});
-  const fs::path report = run.reportAndTimings();
-  std::printf("report        %s\n", report.c_str());
-  // A sensor lost mid-capture still gives every output, from the frames before it, and exit 1.
-  return reportSensorLoss(fused.stats);
 }
 
 }  // namespace objscan::app

@@ -22,6 +22,7 @@ struct ScanCommandOptions {
   bool no_ground_truth = false;
   double min_iou = 0.7;       ///< a hypothesis finds an object at this IoU (the paper's label)
   report::Settings settings;  ///< the command line's, for OUT/settings.json
+  ServeOptions serve;         ///< --serve: the live page
 };
 
 /// `objscan scan`: fuse, discover, evaluate, render and report into OUT in one run, passing the

@@ -137,6 +137,7 @@ class Sensor {
       } else {
         pending_depth_ = depthToMetres(ref);
         pending_depth_us_ = ref.getTimestamp();
+        pending_depth_number_ = ref.getFrameIndex();
         if (has_color_ && (last_color_.empty() || !near(last_color_us_, pending_depth_us_))) {
           // Wait a little for the colour frame of this pair; give up at the next depth frame.
           continue;
@@ -182,6 +183,7 @@ class Sensor {
     RgbdFrame frame;
     frame.index = static_cast<std::int64_t>(delivered_++);
     frame.stamp_s = time_offset_s_ + static_cast<double>(pending_depth_us_) * 1e-6;
+    frame.device_frame = pending_depth_number_;
     frame.depth_m = std::move(pending_depth_);
     pending_depth_ = cv::Mat();
     if (has_color_ && near(last_color_us_, pending_depth_us_) &&
@@ -204,6 +206,7 @@ class Sensor {
   std::size_t delivered_ = 0;
   cv::Mat pending_depth_;
   std::uint64_t pending_depth_us_ = 0;
+  std::int64_t pending_depth_number_ = -1;
   cv::Mat last_color_;
   std::uint64_t last_color_us_ = 0;
   bool stopped_ = false;      ///< finished recording, or the recording stopped: next() ends

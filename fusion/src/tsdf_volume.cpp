@@ -71,6 +71,28 @@ TsdfVolume& TsdfVolume::operator=(TsdfVolume&&) noexcept = default;
 
 std::size_t TsdfVolume::blockCount() const { return impl_->blocks.size(); }
 
+std::size_t TsdfVolume::copyBlocksInto(TsdfVolume& copy, std::size_t first,
+                                       std::size_t max_blocks) const {
+  if (copy.config_.voxel_size_m != config_.voxel_size_m) {
+    throw std::invalid_argument("copyBlocksInto: the volumes' voxel sizes differ");
+  }
+  Impl& to = *copy.impl_;
+  to.has_colors = to.has_colors || impl_->has_colors;
+  first = std::min(first, to.blocks.size());  // never leave a gap in the copy's block order
+  const std::size_t end = std::min(impl_->blocks.size(), first + max_blocks);
+  for (std::size_t i = first; i < end; ++i) {
+    const VoxelBlock& block = impl_->blocks[i];
+    if (i < to.blocks.size()) {
+      to.blocks[i] = block;
+      continue;
+    }
+    // Blocks of the copy are appended in this volume's order, so index i is always the next one.
+    to.blocks.push_back(block);
+    to.map.emplace(blockKey(block.index), static_cast<std::int32_t>(i));
+  }
+  return std::max(first, end);
+}
+
 std::size_t TsdfVolume::memoryBytes() const {
   return impl_->blocks.size() * sizeof(VoxelBlock) +
          impl_->map.bucket_count() * (sizeof(std::uint64_t) + sizeof(std::int32_t) + 8);

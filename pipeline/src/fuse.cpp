@@ -167,6 +167,7 @@ FusedScene fuseSource(const FuseOptions& options, const FuseLimits& limits) {
       }
       const fusion::FrameOutcome outcome = fusion->process(frame, pose);
       totals += outcome.timings;
+      if (limits.on_frame) limits.on_frame(FrameEvent{frame, outcome, *fusion, read, total});
       if (memory) {
         const double volume = static_cast<double>(fusion->volume().memoryBytes());
         const double peak = kPeakPerVolumeByte * volume + kFusionBaseBytes;

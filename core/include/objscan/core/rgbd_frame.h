@@ -10,6 +10,9 @@ namespace objscan {
 /// One synchronised depth + colour image pair, as every capture source delivers it.
 struct RgbdFrame {
   std::int64_t index = 0;  ///< position in its stream, from 0
+  /// The sensor's own number of the depth frame (OpenNI2's frame index), -1 when the source has
+  /// none: on a live sensor, gaps between consecutive frames are frames the reader missed.
+  std::int64_t device_frame = -1;
   double stamp_s = 0.0;    ///< capture time in seconds (sensor or dataset clock)
   /// CV_32FC1, metres along the optical axis (z, not ray length); 0 or NaN = no reading.
   cv::Mat depth_m;

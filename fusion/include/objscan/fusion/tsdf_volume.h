@@ -76,6 +76,15 @@ class TsdfVolume {
   /// The voxel at global grid index g, or none when its block is not allocated.
   std::optional<Voxel> voxelAt(const Eigen::Vector3i& g) const;
 
+  /// Copies blocks [first, first + max_blocks) of this volume into `copy`, a volume of the same
+  /// config that only this function fills from this volume (blocks keep their positions, so
+  /// blocks copied earlier are overwritten with their current contents); returns the index after
+  /// the last block copied, blockCount() when done. A live preview copies a few blocks per frame
+  /// instead of the whole volume at once, so that no frame waits for a large copy; the copy then
+  /// mixes blocks of a few consecutive frames, which a preview can take. Throws
+  /// std::invalid_argument when the voxel sizes differ.
+  std::size_t copyBlocksInto(TsdfVolume& copy, std::size_t first, std::size_t max_blocks) const;
+
   std::size_t blockCount() const;
   /// Bytes held by the blocks and the hash map.
   std::size_t memoryBytes() const;

@@ -32,6 +32,15 @@ struct FuseOptions {
   std::optional<capture::LiveRecording> record;
 };
 
+/// One frame handed to fusion, for a watcher (the live page): valid during the call only.
+struct FrameEvent {
+  const RgbdFrame& frame;
+  const fusion::FrameOutcome& outcome;
+  const fusion::Fusion& fusion;
+  std::size_t frames_read = 0;   ///< so far, this frame included
+  std::size_t frames_total = 0;  ///< the source's known length (within the limits); 0: unknown
+};
+
 /// Limits of a fusion run besides the source's end.
 struct FuseLimits {
   std::optional<std::size_t> max_frames;  ///< frames read (not fused) before stopping
@@ -46,6 +55,9 @@ struct FuseLimits {
   /// Called once the source is open and the poses read, before the first frame (the command
   /// prepares its output folder there, so that a source that cannot be opened leaves nothing).
   std::function<void()> after_open;
+  /// Called on the fusing thread after every frame handed to fusion; it must return quickly
+  /// (copy what it needs, hand work to its own threads). Nothing: no call.
+  std::function<void(const FrameEvent&)> on_frame;
 };
 
 /// What a fusion run did, besides the mesh and trajectory.

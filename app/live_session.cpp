@@ -1,0 +1,427 @@
+#include "live_session.h"
+
+#include <sched.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <utility>
+
+#include <tbb/task_arena.h>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "objscan/core/clock.h"
+#include "objscan/core/log.h"
+#include "objscan/core/palette.h"
+#include "objscan/fusion/marching_cubes.h"
+
+namespace objscan::app {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using Json = nlohmann::json;
+
+/// Blocks of the volume copied per frame for the worker: 1024 blocks of 8^3 voxels are about
+/// 6 MB, about a millisecond of copying, so a 30 Hz loop never waits long for it, and a volume of
+/// 30,000 blocks is copied in a second.
+constexpr std::size_t kCopyBlocksPerFrame = 1024;
+/// Hypotheses are painted on the model picture by the 1 cm cell their vertices fall in.
+constexpr float kPaintCell = 0.01f;
+/// Frames/s is measured over this many recent frames.
+constexpr std::size_t kRateWindow = 30;
+constexpr int kJpegQuality = 80;
+
+std::uint64_t cellKey(const Eigen::Vector3f& p) {
+  const auto part = [](float c) {
+    return static_cast<std::uint64_t>(static_cast<std::int64_t>(std::floor(c / kPaintCell)) +
+                                      (1 << 20)) &
+           ((1u << 21) - 1);
+  };
+  return (part(p.x()) << 42) | (part(p.y()) << 21) | part(p.z());
+}
+
+std::string rankColor(int rank) {
+  const auto& c = kRankPalette[static_cast<std::size_t>(rank - 1) % kRankPalette.size()];
+  char text[8];
+  std::snprintf(text, sizeof text, "#%02x%02x%02x", c[0], c[1], c[2]);
+  return text;
+}
+
+const char* trackingText(fusion::FrameStatus status) {
+  switch (status) {
+    case fusion::FrameStatus::kTracked: return "tracking";
+    case fusion::FrameStatus::kGivenPose: return "given pose";
+    case fusion::FrameStatus::kFirst: return "started";
+    case fusion::FrameStatus::kLost: return "lost";
+    case fusion::FrameStatus::kNoDepth: return "no depth";
+  }
+  return "unknown";
+}
+
+Json vectorJson(const Eigen::Vector3f& v) { return Json::array({v.x(), v.y(), v.z()}); }
+
+Json hypothesesJson(const std::vector<LiveHypothesis>& list) {
+  Json out = Json::array();
+  for (const LiveHypothesis& h : list) {
+    out.push_back({{"rank", h.rank},
+                   {"score", h.score},
+                   {"vertices", h.vertices},
+                   {"centroid_m", vectorJson(h.centroid)},
+                   {"extents_m", vectorJson(h.extents)},
+                   {"color", rankColor(h.rank)}});
+  }
+  return out;
+}
+
+std::string encodeJpeg(const cv::Mat& bgr) {
+  std::vector<unsigned char> bytes;
+  if (!cv::imencode(".jpg", bgr, bytes, {cv::IMWRITE_JPEG_QUALITY, kJpegQuality})) return {};
+  return std::string(bytes.begin(), bytes.end());
+}
+
+/// Makes the calling thread run only when a core would otherwise idle (Linux's SCHED_IDLE:
+/// below every nice level), so online discovery takes nothing from fusion. Threads it starts
+/// inherit it.
+void runOnlyWhenIdle() {
+  sched_param param{};
+  param.sched_priority = 0;
+  if (sched_setscheduler(0, SCHED_IDLE, &param) != 0) {
+    log::debug("online discovery: could not lower its thread's priority");
+  }
+}
+
+}  // namespace
+
+struct LiveSession::Snapshot {
+  std::uint64_t seq = 0;
+  std::int64_t frame = 0;
+  double elapsed_s = 0.0;
+  std::size_t read = 0, total = 0, fused = 0, lost = 0, dropped = 0;
+  double frames_per_s = 0.0;
+  std::string tracking, reason;
+  std::size_t volume_bytes = 0, blocks = 0;
+  float voxel_m = 0.0f;
+  cv::Mat color_rgb;
+  int model_width = 0, model_height = 0;
+  Eigen::Vector3f camera_W = Eigen::Vector3f::Zero();
+  std::vector<Eigen::Vector3f> vertices_W, normals_W;
+};
+
+struct LiveSession::Objects {
+  int round = 0;
+  std::int64_t at_frame = 0;
+  double seconds = 0.0;
+  std::size_t mesh_vertices = 0;
+  std::string message;
+  std::vector<LiveHypothesis> list;
+  std::unordered_map<std::uint64_t, int> paint;  ///< 1 cm cell -> the best rank in it
+};
+
+LiveSession::LiveSession(LiveSettings settings)
+    : settings_(std::move(settings)), started_(Clock::now()), last_round_(Clock::now()) {
+  if (settings_.discovery) worker_ = std::thread([this] { worker(); });
+}
+
+LiveSession::~LiveSession() {
+  {
+    std::lock_guard lock(mutex_);
+    copy_state_ = CopyState::kStopped;
+  }
+  changed_.notify_all();
+  if (worker_.joinable()) worker_.join();
+}
+
+void LiveSession::onFrame(const pipeline::FrameEvent& e) {
+  const auto now = Clock::now();
+  switch (e.outcome.status) {
+    case fusion::FrameStatus::kTracked:
+    case fusion::FrameStatus::kGivenPose:
+    case fusion::FrameStatus::kFirst: ++fused_; break;
+    case fusion::FrameStatus::kLost: ++lost_; break;
+    case fusion::FrameStatus::kNoDepth: break;
+  }
+  if (e.frame.device_frame >= 0) {
+    if (last_device_frame_ >= 0 && e.frame.device_frame > last_device_frame_ + 1) {
+      dropped_ += static_cast<std::size_t>(e.frame.device_frame - last_device_frame_ - 1);
+    }
+    last_device_frame_ = e.frame.device_frame;
+  }
+  recent_frame_s_.push_back(secondsSince(started_));
+  if (recent_frame_s_.size() > kRateWindow) recent_frame_s_.erase(recent_frame_s_.begin());
+
+  if (settings_.discovery) {
+    // The copy for online discovery: begun every discovery_interval_s once the worker is idle,
+    // then a bounded share per frame until it is whole.
+    CopyState state;
+    {
+      std::lock_guard lock(mutex_);
+      if (copy_state_ == CopyState::kIdle &&
+          std::chrono::duration<double>(now - last_round_).count() >=
+              settings_.discovery_interval_s) {
+        copy_state_ = CopyState::kCopying;
+        copy_next_ = 0;
+        copy_frame_ = e.frame.index;
+        if (!copy_) copy_ = std::make_unique<fusion::TsdfVolume>(e.fusion.volume().config());
+      }
+      state = copy_state_;
+    }
+    if (state == CopyState::kCopying) {
+      copy_next_ = e.fusion.volume().copyBlocksInto(*copy_, copy_next_, kCopyBlocksPerFrame);
+      if (copy_next_ >= e.fusion.volume().blockCount()) {
+        {
+          std::lock_guard lock(mutex_);
+          copy_state_ = CopyState::kWorking;
+        }
+        changed_.notify_all();
+      }
+    }
+  }
+
+  if (snapshot_ && std::chrono::duration<double>(now - last_snapshot_).count() <
+                       settings_.snapshot_interval_s) {
+    return;
+  }
+  last_snapshot_ = now;
+  auto s = std::make_shared<Snapshot>();
+  s->frame = e.frame.index;
+  s->elapsed_s = secondsSince(started_);
+  s->read = e.frames_read;
+  s->total = e.frames_total;
+  s->fused = fused_;
+  s->lost = lost_;
+  s->dropped = dropped_;
+  if (recent_frame_s_.size() >= 2 && recent_frame_s_.back() > recent_frame_s_.front()) {
+    s->frames_per_s = static_cast<double>(recent_frame_s_.size() - 1) /
+                      (recent_frame_s_.back() - recent_frame_s_.front());
+  }
+  s->tracking = trackingText(e.outcome.status);
+  s->reason = e.outcome.reason;
+  s->volume_bytes = e.fusion.volume().memoryBytes();
+  s->blocks = e.fusion.volume().blockCount();
+  s->voxel_m = e.fusion.volume().config().voxel_size_m;
+  if (!e.frame.color_rgb.empty()) s->color_rgb = e.frame.color_rgb.clone();
+  const fusion::ModelMaps& model = e.fusion.model();
+  if (!model.vertices_W.empty()) {
+    s->model_width = model.intrinsics.width_px;
+    s->model_height = model.intrinsics.height_px;
+    s->camera_W = model.T_W_C.translation();
+    s->vertices_W = model.vertices_W;
+    s->normals_W = model.normals_W;
+  }
+  {
+    std::lock_guard lock(mutex_);
+    if (stage_ == "starting") stage_ = "fusing";
+    s->seq = ++seq_;
+    snapshot_ = std::move(s);
+  }
+  changed_.notify_all();
+}
+
+void LiveSession::setStage(const std::string& stage) {
+  {
+    std::lock_guard lock(mutex_);
+    stage_ = stage;
+    ++seq_;
+    // Fusion is over: the worker finishes the round it is in and starts no other (its result
+    // would show an older volume than the final one).
+    if (copy_state_ == CopyState::kIdle || copy_state_ == CopyState::kCopying) {
+      copy_state_ = CopyState::kStopped;
+    }
+  }
+  changed_.notify_all();
+}
+
+void LiveSession::finish(LiveFinal final) {
+  {
+    std::lock_guard lock(mutex_);
+    stage_ = final.failed ? "failed" : "done";
+    final_ = std::move(final);
+    copy_state_ = CopyState::kStopped;
+    ++seq_;
+  }
+  changed_.notify_all();
+}
+
+void LiveSession::worker() {
+  runOnlyWhenIdle();
+  // One thread: discovery's parallel loops stay on this (idle-priority) thread instead of
+  // taking oneTBB's workers, which fusion uses.
+  tbb::task_arena arena(1);
+  int round = 0;
+  for (;;) {
+    std::int64_t at_frame = 0;
+    {
+      std::unique_lock lock(mutex_);
+      changed_.wait(lock, [this] {
+        return copy_state_ == CopyState::kWorking || copy_state_ == CopyState::kStopped;
+      });
+      if (copy_state_ == CopyState::kStopped) return;
+      at_frame = copy_frame_;
+    }
+    auto objects = std::make_shared<Objects>();
+    objects->round = ++round;
+    objects->at_frame = at_frame;
+    const auto start = Clock::now();
+    try {
+      arena.execute([&] {
+        const TriangleMesh mesh = fusion::extractMesh(*copy_);
+        objects->mesh_vertices = mesh.positions.size();
+        if (mesh.triangles.empty()) {
+          objects->message = "no surface yet";
+          return;
+        }
+        const std::vector<discovery::Hypothesis> found =
+            discovery::discoverObjects(mesh, settings_.discovery_config);
+        const std::size_t shown = std::min(found.size(), settings_.shown_hypotheses);
+        for (std::size_t i = 0; i < shown; ++i) {
+          const discovery::Hypothesis& h = found[i];
+          const int rank = static_cast<int>(i) + 1;
+          objects->list.push_back({rank, h.score, h.segment.vertices.size(), h.segment.centroid,
+                                   h.segment.extents});
+          for (const std::int32_t v : h.segment.vertices) {
+            // Better ranks come first, so emplace keeps the best rank of a shared cell.
+            objects->paint.emplace(cellKey(mesh.positions[static_cast<std::size_t>(v)]), rank);
+          }
+        }
+        if (found.empty()) objects->message = "no object candidates yet";
+      });
+    } catch (const std::exception& e) {
+      // Too little surface, or too little memory for a round: the page says so; fusion goes on.
+      objects->message = e.what();
+    }
+    objects->seconds = secondsSince(start);
+    {
+      std::lock_guard lock(mutex_);
+      if (copy_state_ == CopyState::kStopped) return;
+      objects_ = std::move(objects);
+      copy_state_ = CopyState::kIdle;
+      last_round_ = Clock::now();
+      ++seq_;
+    }
+    changed_.notify_all();
+  }
+}
+
+std::string LiveSession::stateJson(std::uint64_t after, std::chrono::milliseconds wait) {
+  std::shared_ptr<const Snapshot> s;
+  std::shared_ptr<const Objects> objects;
+  Json j;
+  {
+    std::unique_lock lock(mutex_);
+    changed_.wait_for(lock, wait, [&] { return seq_ > after || final_.has_value(); });
+    s = snapshot_;
+    objects = objects_;
+    j["seq"] = seq_;
+    j["stage"] = stage_;
+    j["discovery_running"] = copy_state_ == CopyState::kWorking;
+    if (final_) {
+      Json files = Json::array();
+      for (const auto& [label, name] : final_->files) {
+        files.push_back({{"label", label}, {"href", "/results/" + name}});
+      }
+      j["final"] = {{"outcome", final_->outcome},
+                    {"failed", final_->failed},
+                    {"hypotheses", hypothesesJson(final_->hypotheses)},
+                    {"files", files}};
+    } else {
+      j["final"] = nullptr;
+    }
+  }
+  j["command"] = settings_.command;
+  j["source"] = settings_.source;
+  if (s) {
+    j["frame"] = s->frame;
+    j["picture"] = s->seq;
+    j["elapsed_s"] = s->elapsed_s;
+    j["tracking"] = {{"state", s->tracking}, {"reason", s->reason}};
+    j["frames"] = {{"read", s->read},
+                   {"total", s->total > 0 ? Json(s->total) : Json(nullptr)},
+                   {"fused", s->fused},
+                   {"lost", s->lost},
+                   {"dropped", s->dropped},
+                   {"per_second", s->frames_per_s}};
+    j["volume"] = {{"bytes", s->volume_bytes}, {"blocks", s->blocks}, {"voxel_m", s->voxel_m}};
+    j["has_color"] = !s->color_rgb.empty();
+  }
+  if (!settings_.discovery) {
+    j["discovery"] = nullptr;
+  } else if (objects) {
+    j["discovery"] = {{"round", objects->round},
+                      {"at_frame", objects->at_frame},
+                      {"seconds", objects->seconds},
+                      {"mesh_vertices", objects->mesh_vertices},
+                      {"message", objects->message},
+                      {"hypotheses", hypothesesJson(objects->list)}};
+  } else {
+    j["discovery"] = {{"round", 0}, {"hypotheses", Json::array()}};
+  }
+  return j.dump();
+}
+
+std::string LiveSession::modelJpeg() {
+  std::shared_ptr<const Snapshot> s;
+  std::shared_ptr<const Objects> objects;
+  {
+    std::lock_guard lock(mutex_);
+    s = snapshot_;
+    objects = objects_;
+  }
+  if (!s || s->vertices_W.empty()) return {};
+  std::lock_guard lock(picture_mutex_);
+  // One picture per snapshot and discovery round, however many clients ask.
+  const std::pair<std::uint64_t, int> key{s->seq, objects ? objects->round : 0};
+  if (model_key_ == key && !model_jpeg_.empty()) return model_jpeg_;
+  cv::Mat bgr(s->model_height, s->model_width, CV_8UC3, cv::Scalar(40, 40, 40));
+  for (int y = 0; y < bgr.rows; ++y) {
+    auto* row = bgr.ptr<cv::Vec3b>(y);
+    for (int x = 0; x < bgr.cols; ++x) {
+      const std::size_t i = static_cast<std::size_t>(y) * static_cast<std::size_t>(bgr.cols) +
+                            static_cast<std::size_t>(x);
+      const Eigen::Vector3f& v = s->vertices_W[i];
+      const Eigen::Vector3f& n = s->normals_W[i];
+      if (!std::isfinite(v.x()) || !std::isfinite(n.x())) continue;
+      // Lit from the camera, as KinectFusion's preview is.
+      const Eigen::Vector3f to_camera = (s->camera_W - v).normalized();
+      const float shade = 0.25f + 0.75f * std::max(0.0f, n.dot(to_camera));
+      float r = 220.0f, g = 220.0f, b = 220.0f;
+      if (objects && !objects->paint.empty()) {
+        const auto it = objects->paint.find(cellKey(v));
+        if (it != objects->paint.end()) {
+          const auto& c = kRankPalette[static_cast<std::size_t>(it->second - 1) %
+                                       kRankPalette.size()];
+          r = c[0];
+          g = c[1];
+          b = c[2];
+        }
+      }
+      row[x] = cv::Vec3b(cv::saturate_cast<std::uint8_t>(b * shade),
+                         cv::saturate_cast<std::uint8_t>(g * shade),
+                         cv::saturate_cast<std::uint8_t>(r * shade));
+    }
+  }
+  model_jpeg_ = encodeJpeg(bgr);
+  model_key_ = key;
+  return model_jpeg_;
+}
+
+std::string LiveSession::colorJpeg() {
+  std::shared_ptr<const Snapshot> s;
+  {
+    std::lock_guard lock(mutex_);
+    s = snapshot_;
+  }
+  if (!s || s->color_rgb.empty()) return {};
+  std::lock_guard lock(picture_mutex_);
+  if (color_seq_ == s->seq && !color_jpeg_.empty()) return color_jpeg_;
+  cv::Mat half, bgr;
+  cv::resize(s->color_rgb, half, cv::Size(s->color_rgb.cols / 2, s->color_rgb.rows / 2), 0, 0,
+             cv::INTER_AREA);
+  cv::cvtColor(half, bgr, cv::COLOR_RGB2BGR);
+  color_jpeg_ = encodeJpeg(bgr);
+  color_seq_ = s->seq;
+  return color_jpeg_;
+}
+
+}  // namespace objscan::app

@@ -1,0 +1,65 @@
+#include "serve.h"
+
+#include <chrono>
+#include <cstdio>
+#include <thread>
+#include <utility>
+
+#include "objscan/core/clock.h"
+#include "options.h"
+#include "stop_signals.h"
+
+namespace objscan::app {
+
+void addServeOptions(CLI::App* sub, ServeOptions& o) {
+  sub->add_option("--serve", o.address,
+                  "Show the scan live in a browser at http://ADDR:PORT/ ([ADDR:]PORT; ADDR "
+                  "defaults to 127.0.0.1, PORT 0 takes any free port), with the objects found "
+                  "while it runs");
+  sub->add_option("--serve-wait", o.wait_s,
+                  "With --serve: after the run, keep serving the results this many seconds "
+                  "(default: until Ctrl-C)")
+      ->check(CLI::NonNegativeNumber);
+  sub->add_flag("--no-live-discovery", [&o](std::int64_t) { o.discovery = false; },
+                "With --serve: do not look for objects while fusing");
+  sub->add_option("--live-discovery-every", o.discovery_interval_s,
+                  "With --serve: seconds between online discovery rounds (default 3)")
+      ->check(positiveNumber());
+}
+
+std::unique_ptr<LiveRun> LiveRun::start(const ServeOptions& options, LiveSettings settings) {
+  if (options.address.empty()) return nullptr;
+  const ServeAddress address = parseServeAddress(options.address);
+  settings.discovery = options.discovery;
+  settings.discovery_interval_s = options.discovery_interval_s;
+  std::unique_ptr<LiveRun> run(new LiveRun(options, address, std::move(settings)));
+  std::printf("live page     %s\n", run->server_.url().c_str());
+  std::fflush(stdout);
+  return run;
+}
+
+LiveRun::LiveRun(const ServeOptions& options, const ServeAddress& address, LiveSettings settings)
+    : options_(options), session_(std::move(settings)), server_(session_, address) {}
+
+void LiveRun::watch(pipeline::FuseLimits& limits) {
+  limits.on_frame = [this](const pipeline::FrameEvent& e) { session_.onFrame(e); };
+}
+
+void LiveRun::finish(LiveFinal final, bool keep_serving) {
+  session_.finish(std::move(final));
+  if (!keep_serving || (options_.wait_s && *options_.wait_s <= 0.0)) return;
+  char how_long[64] = "until Ctrl-C";
+  if (options_.wait_s) std::snprintf(how_long, sizeof how_long, "for %g s", *options_.wait_s);
+  std::printf("live page     %s shows the results %s\n", server_.url().c_str(), how_long);
+  std::fflush(stdout);
+  // A Ctrl-C of its own: an earlier one (the end of a live capture) must not end this at once.
+  StopSignals signals;
+  StopSignals::clear();
+  const auto start = SteadyClock::now();
+  while (!StopSignals::stopRequested() &&
+         (!options_.wait_s || secondsSince(start) < *options_.wait_s)) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+}
+
+}  // namespace objscan::app

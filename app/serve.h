@@ -1,0 +1,49 @@
+#pragma once
+
+#include <memory>
+#include <optional>
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+#include "live_server.h"
+#include "live_session.h"
+#include "objscan/pipeline/fuse.h"
+
+/// `--serve [ADDR:]PORT` for fuse and scan: the live session and its server, started before the
+/// source is opened and kept after the run until Ctrl-C (or --serve-wait), so that the page can
+/// show the final results and link the report.
+namespace objscan::app {
+
+struct ServeOptions {
+  std::string address;              ///< --serve; empty: nothing of the live page runs
+  std::optional<double> wait_s;     ///< --serve-wait; nothing: serve the results until Ctrl-C
+  bool discovery = true;            ///< --no-live-discovery clears it
+  double discovery_interval_s = 3;  ///< --live-discovery-every
+};
+
+/// --serve, --serve-wait, --no-live-discovery, --live-discovery-every.
+void addServeOptions(CLI::App* sub, ServeOptions& o);
+
+/// A live session and its server, for one command run.
+class LiveRun {
+ public:
+  /// Nothing when options.address is empty. Otherwise starts the server (std::invalid_argument,
+  /// exit 2, when it cannot listen) and prints its address.
+  static std::unique_ptr<LiveRun> start(const ServeOptions& options, LiveSettings settings);
+
+  /// Makes fusion report every frame to the session.
+  void watch(pipeline::FuseLimits& limits);
+  void stage(const std::string& name) { session_.setStage(name); }
+  /// The run is over: the page shows `final`; then, with `keep_serving`, serves the results until
+  /// Ctrl-C or --serve-wait (a run stopped by Ctrl-C ends at once).
+  void finish(LiveFinal final, bool keep_serving = true);
+
+ private:
+  LiveRun(const ServeOptions& options, const ServeAddress& address, LiveSettings settings);
+  ServeOptions options_;
+  LiveSession session_;
+  LiveServer server_;
+};
+
+}  // namespace objscan::app
