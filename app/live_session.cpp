@@ -96,13 +96,6 @@ void runOnlyWhenIdle() {
 
 struct LiveSession::Snapshot {
   std::uint64_t seq = 0;
-  std::int64_t frame = 0;
-  double elapsed_s = 0.0;
-  std::size_t read = 0, total = 0, fused = 0, lost = 0, dropped = 0;
-  double frames_per_s = 0.0;
-  std::string tracking, reason;
-  std::size_t volume_bytes = 0, blocks = 0;
-  float voxel_m = 0.0f;
   cv::Mat color_rgb;
   int model_width = 0, model_height = 0;
   Eigen::Vector3f camera_W = Eigen::Vector3f::Zero();
@@ -179,39 +172,44 @@ void LiveSession::onFrame(const pipeline::FrameEvent& e) {
     }
   }
 
-  if (snapshot_ && std::chrono::duration<double>(now - last_snapshot_).count() <
-                       settings_.snapshot_interval_s) {
-    return;
-  }
-  last_snapshot_ = now;
-  auto s = std::make_shared<Snapshot>();
-  s->frame = e.frame.index;
-  s->elapsed_s = secondsSince(started_);
-  s->read = e.frames_read;
-  s->total = e.frames_total;
-  s->fused = fused_;
-  s->lost = lost_;
-  s->dropped = dropped_;
+  // The counts, every frame (the page's last state must hold the last frame's).
+  LiveCounts counts;
+  counts.frame = e.frame.index;
+  counts.elapsed_s = secondsSince(started_);
+  counts.read = e.frames_read;
+  counts.total = e.frames_total;
+  counts.fused = fused_;
+  counts.lost = lost_;
+  counts.dropped = dropped_;
   if (recent_frame_s_.size() >= 2 && recent_frame_s_.back() > recent_frame_s_.front()) {
-    s->frames_per_s = static_cast<double>(recent_frame_s_.size() - 1) /
-                      (recent_frame_s_.back() - recent_frame_s_.front());
+    counts.frames_per_s = static_cast<double>(recent_frame_s_.size() - 1) /
+                          (recent_frame_s_.back() - recent_frame_s_.front());
   }
-  s->tracking = trackingText(e.outcome.status);
-  s->reason = e.outcome.reason;
-  s->volume_bytes = e.fusion.volume().memoryBytes();
-  s->blocks = e.fusion.volume().blockCount();
-  s->voxel_m = e.fusion.volume().config().voxel_size_m;
-  if (!e.frame.color_rgb.empty()) s->color_rgb = e.frame.color_rgb.clone();
-  const fusion::ModelMaps& model = e.fusion.model();
-  if (!model.vertices_W.empty()) {
-    s->model_width = model.intrinsics.width_px;
-    s->model_height = model.intrinsics.height_px;
-    s->camera_W = model.T_W_C.translation();
-    s->vertices_W = model.vertices_W;
-    s->normals_W = model.normals_W;
+  counts.tracking = trackingText(e.outcome.status);
+  counts.reason = e.outcome.reason;
+  counts.volume_bytes = e.fusion.volume().memoryBytes();
+  counts.blocks = e.fusion.volume().blockCount();
+  counts.voxel_m = e.fusion.volume().config().voxel_size_m;
+  // The pictures, a few times a second.
+  std::shared_ptr<Snapshot> s;
+  if (!snapshot_ || std::chrono::duration<double>(now - last_snapshot_).count() >=
+                        settings_.snapshot_interval_s) {
+    last_snapshot_ = now;
+    s = std::make_shared<Snapshot>();
+    if (!e.frame.color_rgb.empty()) s->color_rgb = e.frame.color_rgb.clone();
+    const fusion::ModelMaps& model = e.fusion.model();
+    if (!model.vertices_W.empty()) {
+      s->model_width = model.intrinsics.width_px;
+      s->model_height = model.intrinsics.height_px;
+      s->camera_W = model.T_W_C.translation();
+      s->vertices_W = model.vertices_W;
+      s->normals_W = model.normals_W;
+    }
   }
   {
     std::lock_guard lock(mutex_);
+    counts_ = std::move(counts);
+    if (!s) return;
     if (stage_ == "starting") stage_ = "fusing";
     s->seq = ++seq_;
     snapshot_ = std::move(s);
@@ -307,11 +305,13 @@ void LiveSession::worker() {
 std::string LiveSession::stateJson(std::uint64_t after, std::chrono::milliseconds wait) {
   std::shared_ptr<const Snapshot> s;
   std::shared_ptr<const Objects> objects;
+  std::optional<LiveCounts> counts;
   Json j;
   {
     std::unique_lock lock(mutex_);
     changed_.wait_for(lock, wait, [&] { return seq_ > after || final_.has_value(); });
     s = snapshot_;
+    counts = counts_;
     objects = objects_;
     j["seq"] = seq_;
     j["stage"] = stage_;
@@ -331,18 +331,19 @@ std::string LiveSession::stateJson(std::uint64_t after, std::chrono::millisecond
   }
   j["command"] = settings_.command;
   j["source"] = settings_.source;
-  if (s) {
-    j["frame"] = s->frame;
+  if (s && counts) {
+    const LiveCounts& c = *counts;
+    j["frame"] = c.frame;
     j["picture"] = s->seq;
-    j["elapsed_s"] = s->elapsed_s;
-    j["tracking"] = {{"state", s->tracking}, {"reason", s->reason}};
-    j["frames"] = {{"read", s->read},
-                   {"total", s->total > 0 ? Json(s->total) : Json(nullptr)},
-                   {"fused", s->fused},
-                   {"lost", s->lost},
-                   {"dropped", s->dropped},
-                   {"per_second", s->frames_per_s}};
-    j["volume"] = {{"bytes", s->volume_bytes}, {"blocks", s->blocks}, {"voxel_m", s->voxel_m}};
+    j["elapsed_s"] = c.elapsed_s;
+    j["tracking"] = {{"state", c.tracking}, {"reason", c.reason}};
+    j["frames"] = {{"read", c.read},
+                   {"total", c.total > 0 ? Json(c.total) : Json(nullptr)},
+                   {"fused", c.fused},
+                   {"lost", c.lost},
+                   {"dropped", c.dropped},
+                   {"per_second", c.frames_per_s}};
+    j["volume"] = {{"bytes", c.volume_bytes}, {"blocks", c.blocks}, {"voxel_m", c.voxel_m}};
     j["has_color"] = !s->color_rgb.empty();
   }
   if (!settings_.discovery) {

@@ -51,6 +51,17 @@ struct LiveHypothesis {
   Eigen::Vector3f extents = Eigen::Vector3f::Zero();
 };
 
+/// What the page shows of the frames so far; updated every frame.
+struct LiveCounts {
+  std::int64_t frame = 0;
+  double elapsed_s = 0.0;
+  std::size_t read = 0, total = 0, fused = 0, lost = 0, dropped = 0;
+  double frames_per_s = 0.0;
+  std::string tracking, reason;
+  std::size_t volume_bytes = 0, blocks = 0;
+  float voxel_m = 0.0f;
+};
+
 /// The end of the run, for the page's last state.
 struct LiveFinal {
   std::string outcome;  ///< one line: "finished", "stopped by Ctrl-C", an error
@@ -97,6 +108,7 @@ class LiveSession {
   std::condition_variable changed_;
   std::uint64_t seq_ = 0;  ///< bumped by every change the page can see
   std::shared_ptr<const Snapshot> snapshot_;
+  std::optional<LiveCounts> counts_;
   std::shared_ptr<const Objects> objects_;
   std::string stage_ = "starting";
   std::optional<LiveFinal> final_;

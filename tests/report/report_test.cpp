@@ -27,6 +27,7 @@
 #include "objscan/core/error.h"
 #include "objscan/core/palette.h"
 #include "objscan/report/results_io.h"
+#include "browser.h"
 #include "test_support.h"
 
 namespace objscan {
@@ -466,60 +467,9 @@ TEST(Report, AReportThatCannotBeWrittenIsAnOutputError) {
 
 // --- In a browser -----------------------------------------------------------------------------
 
-/// The full path of `chromium` on PATH; "" when there is none.
-std::string findChromium() {
-  const char* path = std::getenv("PATH");
-  std::stringstream dirs(path != nullptr ? path : "");
-  for (std::string d; std::getline(dirs, d, ':');) {
-    const fs::path candidate = fs::path(d.empty() ? "." : d) / "chromium";
-    if (::access(candidate.c_str(), X_OK) == 0) return candidate.string();
-  }
-  return "";
-}
-
-/// A file:// URL of an absolute path, every byte but unreserved ones and '/' percent-encoded.
-std::string fileUrl(const fs::path& path) {
-  std::string url = "file://";
-  for (const char c : path.string()) {
-    const auto u = static_cast<unsigned char>(c);
-    if (std::isalnum(u) || c == '/' || c == '-' || c == '_' || c == '.' || c == '~') {
-      url += c;
-    } else {
-      char hex[4];
-      std::snprintf(hex, sizeof hex, "%%%02X", u);
-      url += hex;
-    }
-  }
-  return url;
-}
-
-/// The DOM of `page` after it loaded in headless Chromium (scripts run), as Chromium serialises
-/// it. Fails the test when Chromium is missing or does not run.
+/// The DOM of `page` after it loaded in headless Chromium (scripts run).
 std::string domInChromium(const fs::path& page) {
-  const std::string chromium = findChromium();
-  if (chromium.empty()) {
-    ADD_FAILURE() << "chromium is not on PATH: run scripts/setup, which installs Debian's "
-                     "chromium package for this test";
-    return "";
-  }
-  // Chromium writes its profile and caches into `home`, not into the real home (env(1) replaces
-  // HOME; runProcess's extra variables would only add a second one after it).
-  TempDir home;
-  // --no-sandbox: Chromium refuses to run as root with its sandbox (and containers often lack
-  // the user namespaces it needs). coreutils' timeout keeps a hung browser from hanging the suite.
-  const testing::ProcessResult r =
-      testing::runProcess({"/usr/bin/timeout", "60", "/usr/bin/env", "HOME=" + home.path().string(),
-                           "XDG_CONFIG_HOME=" + (home.path() / "config").string(),
-                           "XDG_CACHE_HOME=" + (home.path() / "cache").string(), chromium,
-                           "--headless=new", "--no-sandbox", "--disable-gpu", "--no-first-run",
-                           "--user-data-dir=" + (home.path() / "profile").string(),
-                           "--virtual-time-budget=5000", "--dump-dom", fileUrl(page)});
-  EXPECT_EQ(r.exit_code, 0) << (r.exit_code == 124 ? "chromium did not finish in 60 s\n" : "")
-                            << r.err;
-  EXPECT_NE(r.out.find("</body>"), std::string::npos) << "stdout:\n"
-                                                      << r.out << "\nstderr:\n"
-                                                      << r.err;
-  return r.out;
+  return testing::domInChromium(testing::fileUrl(page));
 }
 
 TEST(ReportInBrowser, EveryPictureDecodesAndNoScriptFails) {

@@ -1,0 +1,303 @@
+// objscan scan/fuse --serve: the live page server against the real objscan binary, scanning the
+// virtual OpenNI2 sensor at 30 Hz. live_server_test (label unit, also under the sanitizers):
+// hostile requests and a busy port. live_page_test (label live): the page in headless Chromium.
+
+#include <arpa/inet.h>
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <csignal>
+#include <filesystem>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "background_process.h"
+#include "browser.h"
+#include "cli_expect.h"
+#include "test_support.h"
+
+namespace objscan {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::BackgroundProcess;
+using testing::TempDir;
+
+/// The port of a "live page     http://127.0.0.1:PORT/" line, or 0.
+int portOf(const std::string& line) {
+  const std::size_t colon = line.rfind(':');
+  return colon == std::string::npos ? 0 : std::atoi(line.c_str() + colon + 1);
+}
+
+/// A TCP connection to 127.0.0.1:port, or -1.
+[[maybe_unused]] int connectTo(int port) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_port = htons(static_cast<std::uint16_t>(port));
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof address) != 0) {
+    ::close(fd);
+    return -1;
+  }
+  return fd;
+}
+
+struct Answer {
+  int status = 0;  ///< 0: the server closed the connection without an answer
+  std::string body;
+};
+
+/// Sends `request` as it is and reads the answer until the server closes (at most 10 s).
+[[maybe_unused]] Answer askRaw(int port, const std::string& request) {
+  Answer answer;
+  const int fd = connectTo(port);
+  if (fd < 0) return answer;
+  std::size_t sent = 0;
+  while (sent < request.size()) {
+    const ssize_t n = ::send(fd, request.data() + sent, request.size() - sent, MSG_NOSIGNAL);
+    if (n <= 0) break;  // the server may close early on a request it refuses
+    sent += static_cast<std::size_t>(n);
+  }
+  std::string reply;
+  const auto start = std::chrono::steady_clock::now();
+  for (;;) {
+    pollfd p{fd, POLLIN, 0};
+    if (::poll(&p, 1, 200) > 0) {
+      char buffer[8192];
+      const ssize_t n = ::recv(fd, buffer, sizeof buffer, 0);
+      if (n <= 0) break;
+      reply.append(buffer, static_cast<std::size_t>(n));
+    }
+    if (std::chrono::steady_clock::now() - start > std::chrono::seconds(10)) break;
+  }
+  ::close(fd);
+  if (reply.rfind("HTTP/1.", 0) == 0 && reply.size() > 12) answer.status = std::stoi(reply.substr(9, 3));
+  const std::size_t body = reply.find("\r\n\r\n");
+  if (body != std::string::npos) answer.body = reply.substr(body + 4);
+  return answer;
+}
+
+[[maybe_unused]] Answer get(int port, const std::string& target) {
+  return askRaw(port, "GET " + target + " HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n");
+}
+
+/// A 30 Hz virtual sensor scan of `frames` frames into `out`, serving on a free port, and kept
+/// serving afterwards until Ctrl-C.
+std::vector<std::string> liveScan(const fs::path& out, int frames) {
+  return {OBJSCAN_EXE, "scan",   "virtual:synth:7?fps=30", "--frames", std::to_string(frames),
+          "--out",     out.string(), "--serve",          "127.0.0.1:0", "--no-catalog",
+          "--live-discovery-every", "1"};
+}
+
+#ifndef OBJSCAN_LIVE_PAGE_TEST
+TEST(LiveServer, HostileRequestsGet4xxAndTheScanGoesOn) {
+  TempDir dir;
+  const fs::path out = dir / "out";
+  fs::create_directories(out);
+  // Files the server must never hand out: a link to outside the folder, and a hidden file.
+  fs::create_symlink("/etc/passwd", out / "outside");
+  testing::writeBytes(out / ".hidden", "secret\n");
+  BackgroundProcess scan(liveScan(out, 90));
+  const int port = portOf(scan.waitForLine("live page", 60));
+  ASSERT_GT(port, 0) << scan.out() << scan.err();
+
+  // While it fuses.
+  EXPECT_EQ(get(port, "/").status, 200);
+  EXPECT_EQ(get(port, "/nope").status, 404);
+  EXPECT_EQ(get(port, "/results/report.html").status, 404);  // not written yet
+  for (const std::string target :
+       {"/results/../../../../etc/passwd", "/results/%2e%2e/%2e%2e/%2e%2e/etc/passwd",
+        "/results/..%2f..%2f..%2fetc%2fpasswd", "/../../etc/passwd", "/results/outside",
+        "/results/.hidden", "/results//etc/passwd", "/results/", "/results/%00",
+        "/results/..%5c..%5cetc%5cpasswd"}) {
+    const Answer a = get(port, target);
+    EXPECT_GE(a.status, 400) << target;
+    EXPECT_LT(a.status, 500) << target;
+    EXPECT_EQ(a.body.find("root:"), std::string::npos) << target;
+    EXPECT_EQ(a.body.find("secret"), std::string::npos) << target;
+  }
+  EXPECT_EQ(askRaw(port, "POST /api/state HTTP/1.1\r\nHost: x\r\nContent-Length: 5\r\n"
+                           "Connection: close\r\n\r\nhello")
+                .status,
+            405);
+  EXPECT_EQ(askRaw(port, "PUT /results/new.txt HTTP/1.1\r\nHost: x\r\nContent-Length: 5\r\n"
+                           "Connection: close\r\n\r\nhello")
+                .status,
+            405);
+  // A header of 64 kB: over civetweb's 16 kB request limit.
+  const Answer huge = askRaw(port, "GET / HTTP/1.1\r\nHost: x\r\nX-Big: " +
+                                         std::string(64 * 1024, 'a') + "\r\n\r\n");
+  EXPECT_TRUE(huge.status == 0 || (huge.status >= 400 && huge.status < 500)) << huge.status;
+  const Answer garbage = askRaw(port, std::string("\x16\x03\x01\x02\x00 \xff\xfe\r\n\r\n", 12));
+  EXPECT_TRUE(garbage.status == 0 || (garbage.status >= 400 && garbage.status < 500))
+      << garbage.status;
+  // Many connections at once, half of them sending an unfinished request, then gone.
+  std::vector<int> crowd;
+  for (int i = 0; i < 100; ++i) {
+    const int fd = connectTo(port);
+    if (fd < 0) continue;
+    if (i % 2 == 0) ::send(fd, "GET / HTTP/1.1\r\nHost:", 21, MSG_NOSIGNAL);
+    crowd.push_back(fd);
+  }
+  EXPECT_GE(crowd.size(), 50u);
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  for (const int fd : crowd) ::close(fd);
+  EXPECT_EQ(get(port, "/api/state").status, 200);
+
+  // The scan was not harmed: every frame fused, every output written; the page still answers.
+  const std::string shows = scan.waitForLine("live page     http://127.0.0.1:" +
+                                                 std::to_string(port) + "/ shows",
+                                             300);
+  ASSERT_NE(shows, "") << scan.out() << scan.err();
+  EXPECT_NE(scan.out().find("frames        90 read, 90 fused, 0 lost"), std::string::npos)
+      << scan.out();
+  const Answer state = get(port, "/api/state");
+  ASSERT_EQ(state.status, 200);
+  const nlohmann::json j = nlohmann::json::parse(state.body);
+  EXPECT_EQ(j["stage"], "done");
+  EXPECT_EQ(j["frames"]["fused"], 90);
+  EXPECT_EQ(get(port, "/results/report.html").status, 200);
+  EXPECT_EQ(get(port, "/results/objects/rank_001.ply").status, 200);
+  EXPECT_FALSE(fs::exists(out / "new.txt"));
+  scan.signal(SIGINT);  // ends the serving after the scan
+  EXPECT_EQ(scan.wait(60), 0) << scan.err();
+  EXPECT_TRUE(fs::is_regular_file(out / "report.html"));
+  EXPECT_EQ(connectTo(port), -1);  // the server is gone with the process
+}
+
+/// A listening socket on a free port of 127.0.0.1, held by the test.
+class BusyPort {
+ public:
+  BusyPort() {
+    fd_ = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    sockaddr_in address{};
+    address.sin_family = AF_INET;
+    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    socklen_t size = sizeof address;
+    if (::bind(fd_, reinterpret_cast<sockaddr*>(&address), sizeof address) != 0 ||
+        ::listen(fd_, 1) != 0 ||
+        ::getsockname(fd_, reinterpret_cast<sockaddr*>(&address), &size) != 0) {
+      throw std::runtime_error("cannot hold a port");
+    }
+    port_ = ntohs(address.sin_port);
+  }
+  ~BusyPort() { ::close(fd_); }
+  int port() const { return port_; }
+
+ private:
+  int fd_ = -1;
+  int port_ = 0;
+};
+
+TEST(LiveServer, APortInUseIsOneErrorBeforeAnythingIsWritten) {
+  TempDir dir;
+  const BusyPort busy;
+  const std::string address = "127.0.0.1:" + std::to_string(busy.port());
+  testing::expectOneErrorLine(
+      testing::objscan({"scan", "synth:3", "--frames", "5", "--out", (dir / "s").string(),
+                        "--serve", address, "--no-catalog"}),
+      2, "--serve " + address + ": cannot listen");
+  EXPECT_FALSE(fs::exists(dir / "s"));
+  testing::expectOneErrorLine(testing::objscan({"fuse", "synth:3", "--end", "5", "--out",
+                                                (dir / "f").string(), "--serve", address}),
+                              2, "cannot listen");
+  EXPECT_FALSE(fs::exists(dir / "f"));
+}
+
+TEST(LiveServer, BadServeValuesAreUsageErrors) {
+  TempDir dir;
+  for (const auto& [value, needle] : std::vector<std::pair<std::string, std::string>>{
+           {"70000", "the port must be a number from 0 to 65535"},
+           {"http", "the port must be a number"},
+           {"-1", "the port must be a number"},
+           {"example.com:8080", "is not an IPv4 address"},
+           {"1.2.3:8080", "is not an IPv4 address"},
+           {":8080", "is not an IPv4 address"}}) {
+    testing::expectOneErrorLine(
+        testing::objscan({"scan", "synth:3", "--out", (dir / "s").string(), "--serve", value}), 2,
+        needle);
+  }
+  EXPECT_FALSE(fs::exists(dir / "s"));
+}
+
+/// fuse --serve: the page's state follows the fusion and ends with the mesh linked.
+TEST(LiveServer, FuseServesTheFinalState) {
+  TempDir dir;
+  BackgroundProcess fuse({OBJSCAN_EXE, "fuse", "synth:3", "--end", "20", "--out",
+                          (dir / "f").string(), "--serve", "0", "--no-live-discovery"});
+  const int port = portOf(fuse.waitForLine("live page", 60));
+  ASSERT_GT(port, 0) << fuse.out() << fuse.err();
+  ASSERT_NE(fuse.waitForLine("live page     http://127.0.0.1:" + std::to_string(port) + "/ shows",
+                             300),
+            "")
+      << fuse.err();
+  const Answer state = get(port, "/api/state?after=0");
+  ASSERT_EQ(state.status, 200);
+  const nlohmann::json j = nlohmann::json::parse(state.body);
+  EXPECT_EQ(j["command"], "fuse");
+  EXPECT_EQ(j["frames"]["fused"], 20);
+  EXPECT_EQ(j["final"]["outcome"], "finished");
+  EXPECT_TRUE(j["discovery"].is_null());
+  EXPECT_EQ(j["final"]["files"][0]["href"], "/results/mesh.ply");
+  const Answer mesh = get(port, "/results/mesh.ply");
+  EXPECT_EQ(mesh.status, 200);
+  EXPECT_EQ(mesh.body, testing::readBytes(dir / "f" / "mesh.ply"));
+  EXPECT_EQ(get(port, "/api/model.jpg").body.substr(0, 3), "\xff\xd8\xff");  // a JPEG
+  fuse.signal(SIGTERM);
+  EXPECT_EQ(fuse.wait(60), 0) << fuse.err();
+}
+
+#else
+/// The value of attribute `name` of the <body> element of a serialised DOM.
+std::string bodyAttribute(const std::string& dom, const std::string& name) {
+  const std::size_t body = dom.find("<body");
+  if (body == std::string::npos) return "(no body)";
+  const std::string tag = dom.substr(body, dom.find('>', body) - body);
+  const std::size_t at = tag.find(" " + name + "=\"");
+  if (at == std::string::npos) return "(absent)";
+  const std::size_t begin = at + name.size() + 3;
+  return tag.substr(begin, tag.find('"', begin) - begin);
+}
+
+// The page in headless Chromium while a 30 Hz virtual sensor is scanned: the model picture
+// changes while frames arrive, hypotheses appear before the scan ends, and the final state (with
+// the report linked) is shown. The page writes what it saw into <body>'s data attributes.
+TEST(LivePage, FollowsAScanInChromium) {
+  TempDir dir;
+  const fs::path out = dir / "out";
+  constexpr int kFrames = 120;  // 4 s at 30 Hz
+  BackgroundProcess scan(liveScan(out, kFrames));
+  const std::string line = scan.waitForLine("live page", 60);
+  ASSERT_GT(portOf(line), 0) << scan.out() << scan.err();
+  const std::string url = line.substr(line.find("http"));
+  // 120 s of the page's virtual time: it stands still while a request is open, and the page
+  // stops asking once it has shown the final state, so Chromium returns soon after the scan ends.
+  const std::string dom = testing::domInChromium(url, 120000, 170);
+  EXPECT_GE(std::stoi(bodyAttribute(dom, "data-distinct-pictures")), 5) << dom;
+  EXPECT_EQ(bodyAttribute(dom, "data-hypotheses-before-end"), "yes");
+  const int first_hypotheses = std::stoi(bodyAttribute(dom, "data-hypotheses-frame"));
+  EXPECT_GE(first_hypotheses, 0);
+  EXPECT_LT(first_hypotheses, kFrames - 1);
+  EXPECT_EQ(bodyAttribute(dom, "data-final").rfind("finished: ", 0), 0u)
+      << bodyAttribute(dom, "data-final");
+  EXPECT_EQ(bodyAttribute(dom, "data-report"), "/results/report.html");
+  EXPECT_EQ(bodyAttribute(dom, "data-errors"), "0");
+  EXPECT_NE(dom.find("<a href=\"/results/report.html\">report</a>"), std::string::npos);
+  scan.signal(SIGINT);
+  EXPECT_EQ(scan.wait(60), 0) << scan.err();
+  EXPECT_NE(scan.out().find("frames        " + std::to_string(kFrames) + " read"),
+            std::string::npos)
+      << scan.out();
+}
+#endif
+
+}  // namespace
+}  // namespace objscan
