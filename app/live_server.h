@@ -5,12 +5,12 @@
 
 #include "live_session.h"
 
-/// The HTTP server behind `--serve`: civetweb (Debian's libcivetweb), chosen because it is a
-/// small, long-maintained C library with a fixed pool of worker threads, a cap on the request
-/// size and a timeout on every connection built in, which is what keeps many or slow clients
-/// from ever reaching the scan; cpp-httplib (header only, a thread per connection) and
-/// Boost.Beast (a toolkit, no server) would need that written by hand. civetweb stays inside
-/// live_server.cpp.
+/// The HTTP server behind `--serve`: civetweb (Debian's libcivetweb), a small, long-maintained C
+/// library whose worker threads, connection queue, request size cap and connection timeout are
+/// run-time options, which is what keeps many, slow or huge requests away from the scan; a shared
+/// library, so Debian's security fixes reach objscan without a rebuild (cpp-httplib is
+/// header-only; Boost.Beast is a toolkit, not a server). docs/live.md has the choice in full.
+/// civetweb stays inside live_server.cpp.
 namespace objscan::app {
 
 /// Where `--serve [ADDR:]PORT` listens. The address is 127.0.0.1 unless one is given; port 0

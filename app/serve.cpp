@@ -6,6 +6,7 @@
 #include <utility>
 
 #include "objscan/core/clock.h"
+#include "objscan/core/log.h"
 #include "options.h"
 #include "stop_signals.h"
 
@@ -33,6 +34,10 @@ std::unique_ptr<LiveRun> LiveRun::start(const ServeOptions& options, LiveSetting
   settings.discovery = options.discovery;
   settings.discovery_interval_s = options.discovery_interval_s;
   std::unique_ptr<LiveRun> run(new LiveRun(options, address, std::move(settings)));
+  if (address.host.rfind("127.", 0) != 0) {
+    log::warning("--serve " + options.address + ": the live page and the results folder can be " +
+                 "read by anyone who reaches this machine on that port (there is no password)");
+  }
   std::printf("live page     %s\n", run->server_.url().c_str());
   std::fflush(stdout);
   return run;
