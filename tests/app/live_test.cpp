@@ -1,5 +1,5 @@
-// objscan scan/fuse --serve: the live page server against the real objscan binary, scanning the
-// virtual OpenNI2 sensor at 30 Hz. live_server_test (label unit, also under the sanitizers):
+// objscan scan/fuse --serve: the live page server against the real objscan binary, scanning a
+// synthetic recording and the virtual OpenNI2 sensor at 30 Hz. live_server_test (label unit, also under the sanitizers):
 // hostile requests and a busy port. live_page_test (label live): the page in headless Chromium.
 
 #include <arpa/inet.h>
@@ -90,16 +90,16 @@ struct Answer {
 }
 
 /// The N of the summary's "frames        N read, ..." line; 0 when there is none.
-std::size_t framesRead(const std::string& out) {
+[[maybe_unused]] std::size_t framesRead(const std::string& out) {
   const std::size_t at = out.find("\nframes        ");
   return at == std::string::npos ? 0 : std::stoul(out.substr(at + 15));
 }
 
-/// A 30 Hz virtual sensor scan of `frames` frames into `out`, serving on a free port, and kept
-/// serving afterwards until Ctrl-C.
-std::vector<std::string> liveScan(const fs::path& out, int frames) {
-  return {OBJSCAN_EXE, "scan",   "virtual:synth:7?fps=30", "--frames", std::to_string(frames),
-          "--out",     out.string(), "--serve",          "127.0.0.1:0", "--no-catalog",
+/// A scan of `frames` frames of `source` into `out`, serving on a free port, and kept serving
+/// afterwards until Ctrl-C.
+std::vector<std::string> servedScan(const std::string& source, const fs::path& out, int frames) {
+  return {OBJSCAN_EXE, "scan",      source,        "--frames",     std::to_string(frames),
+          "--out",     out.string(), "--serve",    "127.0.0.1:0",  "--no-catalog",
           "--live-discovery-every", "1"};
 }
 
@@ -111,7 +111,9 @@ TEST(LiveServer, HostileRequestsGet4xxAndTheScanGoesOn) {
   // Files the server must never hand out: a link to outside the folder, and a hidden file.
   fs::create_symlink("/etc/passwd", out / "outside");
   testing::writeBytes(out / ".hidden", "secret\n");
-  BackgroundProcess scan(liveScan(out, 90));
+  // A synthetic recording, read as fast as fusion goes and never skipping a frame, so that an
+  // unharmed scan fuses each of its 60 frames however slow the build (a sanitizer's) is.
+  BackgroundProcess scan(servedScan("synth:7", out, 60));
   const int port = portOf(scan.waitForLine("live page", 60));
   ASSERT_GT(port, 0) << scan.out() << scan.err();
 
@@ -163,21 +165,28 @@ TEST(LiveServer, HostileRequestsGet4xxAndTheScanGoesOn) {
                                                  std::to_string(port) + "/ shows",
                                              300);
   ASSERT_NE(shows, "") << scan.out() << scan.err();
-  // Every frame read was fused (a sensor that runs ahead of a loaded machine skips frames, and
-  // its source ends before 90 are read: those show as dropped, not lost).
-  const std::size_t read = framesRead(scan.out());
-  EXPECT_GE(read, 20u) << scan.out();
-  EXPECT_NE(scan.out().find(std::to_string(read) + " read, " + std::to_string(read) +
-                            " fused, 0 lost"),
-            std::string::npos)
+  EXPECT_NE(scan.out().find("frames        60 read, 60 fused, 0 lost"), std::string::npos)
       << scan.out();
   const Answer state = get(port, "/api/state");
   ASSERT_EQ(state.status, 200);
   const nlohmann::json j = nlohmann::json::parse(state.body);
   EXPECT_EQ(j["stage"], "done");
-  EXPECT_EQ(j["frames"]["fused"], read);
+  EXPECT_EQ(j["frames"]["fused"], 60);
   EXPECT_EQ(get(port, "/results/report.html").status, 200);
   EXPECT_EQ(get(port, "/results/objects/rank_001.ply").status, 200);
+  // Clients that go away in the middle of a download (a reset, not a close): the server goes on.
+  for (int i = 0; i < 10; ++i) {
+    const int fd = connectTo(port);
+    ASSERT_GE(fd, 0);
+    const std::string request = "GET /results/mesh.ply HTTP/1.1\r\nHost: x\r\n\r\n";
+    ::send(fd, request.data(), request.size(), MSG_NOSIGNAL);
+    char some[100];
+    ::recv(fd, some, sizeof some, 0);
+    const linger reset{1, 0};
+    ::setsockopt(fd, SOL_SOCKET, SO_LINGER, &reset, sizeof reset);
+    ::close(fd);
+  }
+  EXPECT_EQ(get(port, "/api/state").status, 200);
   EXPECT_FALSE(fs::exists(out / "new.txt"));
   scan.signal(SIGINT);  // ends the serving after the scan
   EXPECT_EQ(scan.wait(60), 0) << scan.err();
@@ -286,7 +295,7 @@ TEST(LivePage, FollowsAScanInChromium) {
   TempDir dir;
   const fs::path out = dir / "out";
   constexpr int kFrames = 120;  // 4 s at 30 Hz
-  BackgroundProcess scan(liveScan(out, kFrames));
+  BackgroundProcess scan(servedScan("virtual:synth:7?fps=30", out, kFrames));
   const std::string line = scan.waitForLine("live page", 60);
   ASSERT_GT(portOf(line), 0) << scan.out() << scan.err();
   const std::string url = line.substr(line.find("http"));
