@@ -249,6 +249,29 @@ TEST(LiveServer, BadServeValuesAreUsageErrors) {
   EXPECT_FALSE(fs::exists(dir / "s"));
 }
 
+// Ctrl-C while a served scan fuses a recording ends the scan and the server together, with the
+// outputs a stopped scan writes without --serve, and no waiting for the page.
+TEST(LiveServer, CtrlCEndsTheScanAndTheServerTogether) {
+  TempDir dir;
+  const fs::path out = dir / "out";
+  BackgroundProcess scan(servedScan("synth:7", out, 300));
+  const int port = portOf(scan.waitForLine("live page", 60));
+  ASSERT_GT(port, 0) << scan.out() << scan.err();
+  // Wait until the page has a fused frame to show.
+  for (int i = 0; i < 100 && get(port, "/api/model.jpg").status != 200; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  scan.signal(SIGINT);
+  EXPECT_EQ(scan.wait(120), 130) << scan.err();
+  EXPECT_NE(scan.out().find("stopped by    Ctrl-C / SIGTERM; not produced: hypotheses.json"),
+            std::string::npos)
+      << scan.out();
+  EXPECT_EQ(scan.out().find("shows the results"), std::string::npos) << scan.out();
+  EXPECT_TRUE(fs::is_regular_file(out / "mesh.ply"));
+  EXPECT_TRUE(fs::is_regular_file(out / "timings.json"));
+  EXPECT_EQ(connectTo(port), -1);
+}
+
 /// fuse --serve: the page's state follows the fusion and ends with the mesh linked.
 TEST(LiveServer, FuseServesTheFinalState) {
   TempDir dir;
