@@ -311,7 +311,8 @@ int runEval(const EvalCommandOptions& options) {
   }
   writeRecall(options.out, recallTable(set, segs), summary);
   writeSceneFigures(options.out, set, categories, summary);
-  writeFileAtomically(options.out / "summary.json", summary.dump(1) + "\n");
+  writeFileAtomically(options.out / "summary.json",
+                      summary.dump(1, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
   report::Settings settings = options.settings;
   settings.catalog = report::catalogUseOf(set);
   report::writeSettings(options.out / report::kSettingsFile, settings);

@@ -103,7 +103,7 @@ int runFuse(const FuseCommandOptions& options) {
     addFusionSettings(settings, fused, options.fuse);
     report::writeSettings(options.out / report::kSettingsFile, settings);
   } catch (const std::exception& e) {
-    if (live) live->finish(LiveFinal{std::string("failed: ") + e.what(), true, {}, {}}, false);
+    if (live) live->finish(LiveFinal::without(std::string("failed: ") + e.what()), false);
     throw;
   }
   printFuseSummary(fused, options.out);

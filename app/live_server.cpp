@@ -91,14 +91,12 @@ std::uint64_t afterOf(const char *query) {
 }
 
 /// The file of the results folder that `relative` names, or empty: no "." or ".." segment, no
-/// hidden file or folder (temporary files, the folder's lock), no backslash or NUL, and after
-/// symbolic links are resolved still inside the folder and a regular file.
+/// hidden file or folder (temporary files, the folder's lock), no backslash, and after symbolic
+/// links are resolved still inside the folder and a regular file. (civetweb decodes the path in
+/// place, so a %00 ends it: "a%00.txt" names "a", which these rules then judge.)
 fs::path resultFile(const fs::path& folder, std::string_view relative) {
   if (relative.empty() || relative.size() > 1024) return {};
-  if (relative.find('\\') != std::string_view::npos ||
-      relative.find('\0') != std::string_view::npos) {
-    return {};
-  }
+  if (relative.find('\\') != std::string_view::npos) return {};
   std::size_t at = 0;
   while (at <= relative.size()) {
     const std::size_t slash = std::min(relative.find('/', at), relative.size());
@@ -120,12 +118,56 @@ fs::path resultFile(const fs::path& folder, std::string_view relative) {
 
 struct LiveServer::Impl {
   LiveSession &session;
+  ServeAddress address;
   mg_context *context = nullptr;
+  int port = 0;  ///< the port bound
+
+  /// Whether `host` (a Host header) names this server: the address it listens on, or localhost
+  /// on a loopback address, or, listening on every interface, an IPv4 address or this machine's
+  /// name; with the port bound. A page of another site that has made its own name point at
+  /// 127.0.0.1 (DNS rebinding) sends that name, and is refused.
+  bool ownHost(std::string_view host) const {
+    std::string_view name = host;
+    const std::size_t colon = host.rfind(':');
+    if (colon != std::string_view::npos) {
+      int given = -1;
+      if (!parsePort(host.substr(colon + 1), &given) || given != port) return false;
+      name = host.substr(0, colon);
+    } else if (port != 80) {
+      return false;
+    }
+    const auto same = [](std::string_view a, std::string_view b) {
+      return a.size() == b.size() && mg_strncasecmp(a.data(), b.data(), a.size()) == 0;
+    };
+    if (same(name, address.host)) return true;
+    const bool any = address.host == "0.0.0.0";
+    if (same(name, "localhost") && (any || address.host.rfind("127.", 0) == 0)) return true;
+    if (!any) return false;
+    if (isIpv4(name)) return true;
+    char own[256] = "";
+    return gethostname(own, sizeof own - 1) == 0 && same(name, own);
+  }
 
   int handle(mg_connection *conn) {
+    // Nothing may leave a civetweb callback as an exception (it would end the whole scan).
+    try {
+      return route(conn);
+    } catch (const std::exception &e) {
+      log::debug(std::string("live page server: ") + e.what());
+      replyError(conn, 500, "internal error", false);
+      return 500;
+    }
+  }
+
+  int route(mg_connection *conn) {
     const mg_request_info *request = mg_get_request_info(conn);
     const std::string_view method = request->request_method ? request->request_method : "";
     const bool head = method == "HEAD";
+    const char *host = mg_get_header(conn, "Host");
+    if (host && !ownHost(host)) {
+      replyError(conn, 403, "this server answers only to its own address", head);
+      return 403;
+    }
     if (method != "GET" && !head) {
       replyError(conn, 405, "only GET and HEAD are served here", false);
       return 405;
@@ -159,8 +201,7 @@ struct LiveServer::Impl {
         return 404;
       }
       // civetweb sends the file (Content-Type from its extension, ranges, HEAD).
-      mg_send_mime_file2(conn, file.c_str(), nullptr,
-                         "Cache-Control: no-store\r\nX-Content-Type-Options: nosniff\r\n");
+      mg_send_mime_file2(conn, file.c_str(), nullptr, "X-Content-Type-Options: nosniff\r\n");
       return 200;
     }
     replyError(conn, 404, "not found", head);
@@ -187,7 +228,7 @@ ServeAddress parseServeAddress(const std::string &text) {
 }
 
 LiveServer::LiveServer(LiveSession &session, const ServeAddress &address)
-    : impl_(new Impl{session}) {
+    : impl_(new Impl{session, address}) {
   mg_init_library(0);
   const std::string listening = address.host + ":" + std::to_string(address.port);
   // A few threads: the page needs two or three connections, and a request beyond them waits in
@@ -209,6 +250,8 @@ LiveServer::LiveServer(LiveSession &session, const ServeAddress &address)
                            "no",
                            "access_control_allow_origin",
                            "",
+                           "static_file_cache_control",
+                           "no-store",
                            nullptr};
   mg_callbacks callbacks{};
   callbacks.begin_request = [](mg_connection *conn) -> int {
@@ -223,6 +266,7 @@ LiveServer::LiveServer(LiveSession &session, const ServeAddress &address)
   mg_init_data init{&callbacks, impl_.get(), options};
   impl_->context = mg_start2(&init, &error);
   if (!impl_->context) {
+    mg_exit_library();
     std::string why = error_text[0] ? error_text : "civetweb could not start";
     throw std::invalid_argument("--serve " + listening + ": cannot listen: " + why +
                                 " (is another program on that port? pick another, or 0 for any "
@@ -231,6 +275,7 @@ LiveServer::LiveServer(LiveSession &session, const ServeAddress &address)
   mg_server_port ports[4];
   const int n = mg_get_server_ports(impl_->context, 4, ports);
   const int port = n > 0 ? ports[0].port : address.port;
+  impl_->port = port;
   const std::string shown = address.host == "0.0.0.0" ? std::string("127.0.0.1") : address.host;
   url_ = "http://" + shown + ":" + std::to_string(port) + "/";
 }

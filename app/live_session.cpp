@@ -1,6 +1,8 @@
 #include "live_session.h"
 
 #include <sched.h>
+#include <sys/syscall.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -32,6 +34,11 @@ constexpr float kPaintCell = 0.01f;
 /// Frames/s is measured over this many recent frames.
 constexpr std::size_t kRateWindow = 30;
 constexpr int kJpegQuality = 80;
+/// Discovery's peak memory per vertex of its mesh (measured: 0.6-0.75 kB, docs/discovery.md), and
+/// the vertices marching cubes makes per block of a fused surface (about 37 on 7-Scenes and the
+/// synthetic desk): online discovery's memory, for fusion's guard.
+constexpr double kDiscoveryBytesPerVertex = 1000.0;
+constexpr double kVerticesPerBlock = 40.0;
 
 std::uint64_t cellKey(const Eigen::Vector3f& p) {
   const auto part = [](float c) {
@@ -120,10 +127,27 @@ LiveSession::LiveSession(LiveSettings settings)
 LiveSession::~LiveSession() {
   {
     std::lock_guard lock(mutex_);
-    copy_state_ = CopyState::kStopped;
+    stopWorkerLocked();
   }
-  changed_.notify_all();
+  work_.notify_all();
+  // A round under way finishes its current step (it checks stopping_ between steps), at normal
+  // priority now, so that the end of the run never waits for an idle core.
+  if (const pid_t tid = worker_tid_.load(); tid != 0) {
+    sched_param param{};
+    sched_setscheduler(tid, SCHED_OTHER, &param);
+  }
   if (worker_.joinable()) worker_.join();
+}
+
+void LiveSession::stopWorkerLocked() {
+  stopping_ = true;
+  // The fusing thread owns the copy except while the worker works on it; then the worker frees
+  // it when it ends.
+  if (copy_state_ != CopyState::kWorking) {
+    copy_.reset();
+    extra_bytes_ = 0.0;
+  }
+  copy_state_ = CopyState::kStopped;
 }
 
 void LiveSession::onFrame(const pipeline::FrameEvent& e) {
@@ -162,12 +186,16 @@ void LiveSession::onFrame(const pipeline::FrameEvent& e) {
     }
     if (state == CopyState::kCopying) {
       copy_next_ = e.fusion.volume().copyBlocksInto(*copy_, copy_next_, kCopyBlocksPerFrame);
+      // The copy, and discovery's about 1 kB per vertex of its mesh (about 40 vertices a block).
+      extra_bytes_ = static_cast<double>(copy_->memoryBytes()) +
+                     kDiscoveryBytesPerVertex * kVerticesPerBlock *
+                         static_cast<double>(copy_->blockCount());
       if (copy_next_ >= e.fusion.volume().blockCount()) {
         {
           std::lock_guard lock(mutex_);
           copy_state_ = CopyState::kWorking;
         }
-        changed_.notify_all();
+        work_.notify_all();
       }
     }
   }
@@ -222,84 +250,135 @@ void LiveSession::setStage(const std::string& stage) {
     std::lock_guard lock(mutex_);
     stage_ = stage;
     ++seq_;
-    // Fusion is over: the worker finishes the round it is in and starts no other (its result
-    // would show an older volume than the final one).
-    if (copy_state_ == CopyState::kIdle || copy_state_ == CopyState::kCopying) {
-      copy_state_ = CopyState::kStopped;
-    }
+    // Fusion is over: no round starts, a round under way is dropped (both would show an older
+    // volume than the final one), and the copy is freed.
+    stopWorkerLocked();
   }
+  work_.notify_all();
   changed_.notify_all();
 }
 
 void LiveSession::finish(LiveFinal final) {
+  std::shared_ptr<Objects> painted;
+  if (!final.painted.empty()) {
+    // The last picture in the final ranking's colours.
+    painted = std::make_shared<Objects>();
+    painted->round = -1;
+    painted->list = final.hypotheses;
+    for (std::size_t i = 0; i < final.painted.size() && i < final.hypotheses.size(); ++i) {
+      for (const Eigen::Vector3f& p : final.painted[i]) {
+        painted->paint.emplace(cellKey(p), final.hypotheses[i].rank);
+      }
+    }
+    final.painted.clear();
+  }
+  std::shared_ptr<const Objects> old;  // destroyed after the lock is let go
   {
     std::lock_guard lock(mutex_);
     stage_ = final.failed ? "failed" : "done";
     final_ = std::move(final);
-    copy_state_ = CopyState::kStopped;
+    if (painted) {
+      old = std::move(objects_);
+      objects_ = std::move(painted);
+    }
+    stopWorkerLocked();
     ++seq_;
   }
+  work_.notify_all();
   changed_.notify_all();
 }
 
+bool LiveSession::pageActive() {
+  std::lock_guard lock(mutex_);
+  return last_state_request_ != Clock::time_point{} &&
+         Clock::now() - last_state_request_ < std::chrono::seconds(2);
+}
+
+bool LiveSession::finalServed() {
+  std::lock_guard lock(mutex_);
+  return final_served_;
+}
+
 void LiveSession::worker() {
+  worker_tid_ = static_cast<pid_t>(syscall(SYS_gettid));
   runOnlyWhenIdle();
-  // One thread: discovery's parallel loops stay on this (idle-priority) thread instead of
-  // taking oneTBB's workers, which fusion uses.
-  tbb::task_arena arena(1);
   int round = 0;
   for (;;) {
     std::int64_t at_frame = 0;
     {
       std::unique_lock lock(mutex_);
-      changed_.wait(lock, [this] {
+      work_.wait(lock, [this] {
         return copy_state_ == CopyState::kWorking || copy_state_ == CopyState::kStopped;
       });
       if (copy_state_ == CopyState::kStopped) return;
       at_frame = copy_frame_;
     }
-    auto objects = std::make_shared<Objects>();
-    objects->round = ++round;
-    objects->at_frame = at_frame;
-    const auto start = Clock::now();
-    try {
-      arena.execute([&] {
-        const TriangleMesh mesh = fusion::extractMesh(*copy_);
-        objects->mesh_vertices = mesh.positions.size();
-        if (mesh.triangles.empty()) {
-          objects->message = "no surface yet";
-          return;
-        }
-        const std::vector<discovery::Hypothesis> found =
-            discovery::discoverObjects(mesh, settings_.discovery_config);
-        const std::size_t shown = std::min(found.size(), settings_.shown_hypotheses);
-        for (std::size_t i = 0; i < shown; ++i) {
-          const discovery::Hypothesis& h = found[i];
-          const int rank = static_cast<int>(i) + 1;
-          objects->list.push_back({rank, h.score, h.segment.vertices.size(), h.segment.centroid,
-                                   h.segment.extents});
-          for (const std::int32_t v : h.segment.vertices) {
-            // Better ranks come first, so emplace keeps the best rank of a shared cell.
-            objects->paint.emplace(cellKey(mesh.positions[static_cast<std::size_t>(v)]), rank);
-          }
-        }
-        if (found.empty()) objects->message = "no object candidates yet";
-      });
-    } catch (const std::exception& e) {
-      // Too little surface, or too little memory for a round: the page says so; fusion goes on.
-      objects->message = e.what();
-    }
-    objects->seconds = secondsSince(start);
+    std::shared_ptr<Objects> objects = discoverOnCopy(++round, at_frame);
+    std::shared_ptr<const Objects> old;  // destroyed after the lock is let go: it may be large
+    bool stopped = false;
     {
       std::lock_guard lock(mutex_);
-      if (copy_state_ == CopyState::kStopped) return;
-      objects_ = std::move(objects);
-      copy_state_ = CopyState::kIdle;
-      last_round_ = Clock::now();
-      ++seq_;
+      stopped = copy_state_ == CopyState::kStopped;
+      if (stopped) {
+        copy_.reset();  // the worker held it; fusion is over
+        extra_bytes_ = 0.0;
+      } else {
+        copy_state_ = CopyState::kIdle;
+        last_round_ = Clock::now();
+      }
+      if (!stopping_) {
+        old = std::move(objects_);
+        objects_ = std::move(objects);
+        ++seq_;
+      }
     }
     changed_.notify_all();
+    if (stopped) return;
   }
+}
+
+std::shared_ptr<LiveSession::Objects> LiveSession::discoverOnCopy(int round,
+                                                                  std::int64_t at_frame) {
+  auto objects = std::make_shared<Objects>();
+  objects->round = round;
+  objects->at_frame = at_frame;
+  const auto start = Clock::now();
+  // One thread: discovery's parallel loops stay on this (idle-priority) thread instead of
+  // taking oneTBB's workers, which fusion uses.
+  tbb::task_arena arena(1);
+  try {
+    arena.execute([&] {
+      const TriangleMesh mesh = fusion::extractMesh(*copy_);
+      objects->mesh_vertices = mesh.positions.size();
+      if (stopping_) {
+        objects->message = "stopped: the scan ended";
+        return;
+      }
+      if (mesh.triangles.empty()) {
+        objects->message = "no surface yet";
+        return;
+      }
+      const std::vector<discovery::Hypothesis> found =
+          discovery::discoverObjects(mesh, settings_.discovery_config);
+      const std::size_t shown = std::min(found.size(), settings_.shown_hypotheses);
+      for (std::size_t i = 0; i < shown; ++i) {
+        const discovery::Hypothesis& h = found[i];
+        const int rank = static_cast<int>(i) + 1;
+        objects->list.push_back(
+            {rank, h.score, h.segment.vertices.size(), h.segment.centroid, h.segment.extents});
+        for (const std::int32_t v : h.segment.vertices) {
+          // Better ranks come first, so emplace keeps the best rank of a shared cell.
+          objects->paint.emplace(cellKey(mesh.positions[static_cast<std::size_t>(v)]), rank);
+        }
+      }
+      if (found.empty()) objects->message = "no object candidates yet";
+    });
+  } catch (const std::exception& e) {
+    // Too little surface, or too little memory for a round: the page says so; fusion goes on.
+    objects->message = e.what();
+  }
+  objects->seconds = secondsSince(start);
+  return objects;
 }
 
 std::string LiveSession::stateJson(std::uint64_t after, std::chrono::milliseconds wait) {
@@ -309,7 +388,9 @@ std::string LiveSession::stateJson(std::uint64_t after, std::chrono::millisecond
   Json j;
   {
     std::unique_lock lock(mutex_);
+    last_state_request_ = Clock::now();
     changed_.wait_for(lock, wait, [&] { return seq_ > after || final_.has_value(); });
+    final_served_ = final_served_ || final_.has_value();
     s = snapshot_;
     counts = counts_;
     objects = objects_;
@@ -358,7 +439,9 @@ std::string LiveSession::stateJson(std::uint64_t after, std::chrono::millisecond
   } else {
     j["discovery"] = {{"round", 0}, {"hypotheses", Json::array()}};
   }
-  return j.dump();
+  // A path or message that is not UTF-8 (a source named in Latin-1, say) is shown with U+FFFD
+  // instead of failing the request.
+  return j.dump(-1, ' ', false, Json::error_handler_t::replace);
 }
 
 std::string LiveSession::modelJpeg() {

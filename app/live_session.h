@@ -1,5 +1,8 @@
 #pragma once
 
+#include <sys/types.h>
+
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <cstddef>
@@ -68,6 +71,17 @@ struct LiveFinal {
   bool failed = false;
   std::vector<LiveHypothesis> hypotheses;  ///< the final ranking (scan), best first
   std::vector<std::pair<std::string, std::string>> files;  ///< label, name in the results folder
+  /// The vertices of each of `hypotheses` (same order), to paint the last model picture with the
+  /// final ranking's colours; empty: it keeps the last online round's.
+  std::vector<std::vector<Eigen::Vector3f>> painted;
+
+  /// A run that ended without results to show: stopped, or failed.
+  static LiveFinal without(std::string outcome) {
+    LiveFinal f;
+    f.outcome = std::move(outcome);
+    f.failed = true;
+    return f;
+  }
 };
 
 class LiveSession {
@@ -81,10 +95,14 @@ class LiveSession {
   /// After every frame (pipeline::FuseLimits::on_frame). Cheap: a snapshot every
   /// snapshot_interval_s, and a bounded share of the volume copy.
   void onFrame(const pipeline::FrameEvent& event);
-  /// The stage the command is in ("fusing", "meshing", "discovering objects", ...).
+  /// The stage the command is in ("meshing the volume", "discovering objects", ...). Fusion is
+  /// over once it is called: online discovery starts no other round, and its copy is freed.
   void setStage(const std::string& stage);
   /// The run is over: the page shows `final` and stops asking. Stops the worker.
   void finish(LiveFinal final);
+  /// Memory online discovery holds or is about to take besides fusion's: the volume copy, and
+  /// about 1 kB per vertex of its mesh (discovery's measured peak), for fusion's memory guard.
+  double extraMemoryBytes() const { return extra_bytes_.load(); }
 
   // Any thread (the server's).
   /// The state as JSON. Waits up to `wait` for a state newer than `after` (long polling), and
@@ -96,22 +114,32 @@ class LiveSession {
   /// JPEG of the current colour frame (half size); empty when the source has no colour.
   std::string colorJpeg();
   const LiveSettings& settings() const { return settings_; }
+  /// A page asked for the state within the last two seconds.
+  bool pageActive();
+  /// A page has been sent the final state.
+  bool finalServed();
 
  private:
   struct Snapshot;
   struct Objects;
   void worker();
-  void publishLocked();
+  /// Discovery on the copy; runs on the worker thread.
+  std::shared_ptr<Objects> discoverOnCopy(int round, std::int64_t at_frame);
+  /// Ends online discovery; the fusing thread frees the copy when the worker holds none.
+  void stopWorkerLocked();
 
   LiveSettings settings_;
   std::mutex mutex_;
-  std::condition_variable changed_;
+  std::condition_variable changed_;  ///< the page's long polls wait on it
+  std::condition_variable work_;     ///< the worker waits on it (never woken by a new frame)
   std::uint64_t seq_ = 0;  ///< bumped by every change the page can see
   std::shared_ptr<const Snapshot> snapshot_;
   std::optional<LiveCounts> counts_;
   std::shared_ptr<const Objects> objects_;
   std::string stage_ = "starting";
   std::optional<LiveFinal> final_;
+  bool final_served_ = false;
+  std::chrono::steady_clock::time_point last_state_request_{};
   // Frame counters, on the fusing thread (copied into snapshots).
   std::chrono::steady_clock::time_point started_, last_snapshot_;
   std::vector<double> recent_frame_s_;  ///< times of the last frames, for frames/s
@@ -130,6 +158,9 @@ class LiveSession {
   std::size_t copy_next_ = 0;
   std::int64_t copy_frame_ = 0;  ///< the frame the copy was begun at
   std::chrono::steady_clock::time_point last_round_;
+  std::atomic<bool> stopping_{false};  ///< checked by the worker between its steps
+  std::atomic<double> extra_bytes_{0.0};
+  std::atomic<pid_t> worker_tid_{0};
   std::thread worker_;
 };
 

@@ -217,23 +217,28 @@ class ScanRun {
   LiveRun* live_;                ///< --serve's, or none
 };
 
-/// The final ranking for the live page: the first `shown` hypotheses.
-std::vector<LiveHypothesis> liveHypotheses(const discovery::SceneDiscovery& found,
-                                           std::size_t shown) {
-  std::vector<LiveHypothesis> out;
+/// The final ranking for the live page: the first `shown` hypotheses, and their vertices to
+/// paint.
+void addLiveHypotheses(const discovery::SceneDiscovery& found, std::size_t shown,
+                       LiveFinal& final) {
   for (std::size_t i = 0; i < found.ranked.size() && i < shown; ++i) {
     const discovery::Hypothesis& h = found.ranked[i].hypothesis;
-    out.push_back({static_cast<int>(i) + 1, h.score, h.segment.vertices.size(), h.segment.centroid,
-                   h.segment.extents});
+    final.hypotheses.push_back({static_cast<int>(i) + 1, h.score, h.segment.vertices.size(),
+                                h.segment.centroid, h.segment.extents});
+    const TriangleMesh& mesh = found.scenes.at(found.ranked[i].scene).mesh;
+    std::vector<Eigen::Vector3f>& painted = final.painted.emplace_back();
+    painted.reserve(h.segment.vertices.size());
+    for (const std::int32_t v : h.segment.vertices) {
+      painted.push_back(mesh.positions[static_cast<std::size_t>(v)]);
+    }
   }
-  return out;
 }
 
 /// What a stopped scan tells the page: it ends at once, showing what was written.
 LiveFinal stoppedFinal(const std::vector<std::string>& missing) {
   std::string list;
   for (const std::string& m : missing) list += (list.empty() ? "" : ", ") + m;
-  return LiveFinal{"stopped by Ctrl-C / SIGTERM; not produced: " + list, true, {}, {}};
+  return LiveFinal::without("stopped by Ctrl-C / SIGTERM; not produced: " + list);
 }
 
 }  // namespace
@@ -286,7 +291,7 @@ int runScan(ScanCommandOptions options) {
                                                  " hypotheses ranked"
                                            : "sensor lost: " + fused.stats.sensor_lost;
       final.failed = code != kExitSuccess;
-      final.hypotheses = liveHypotheses(found, live_settings.shown_hypotheses);
+      addLiveHypotheses(found, live_settings.shown_hypotheses, final);
       final.files = {{"report", report::kReportFile},
                      {"mesh", report::kMeshFile},
                      {"hypotheses", report::kHypothesesFile},
@@ -296,7 +301,7 @@ int runScan(ScanCommandOptions options) {
     }
     return code;
   } catch (const std::exception& e) {
-    if (live) live->finish(LiveFinal{std::string("failed: ") + e.what(), true, {}, {}}, false);
+    if (live) live->finish(LiveFinal::without(std::string("failed: ") + e.what()), false);
     throw;
   }
 }

@@ -48,11 +48,21 @@ LiveRun::LiveRun(const ServeOptions& options, const ServeAddress& address, LiveS
 
 void LiveRun::watch(pipeline::FuseLimits& limits) {
   limits.on_frame = [this](const pipeline::FrameEvent& e) { session_.onFrame(e); };
+  limits.extra_memory_bytes = [this] { return session_.extraMemoryBytes(); };
+  limits.before_meshing = [this] { session_.setStage("meshing the volume"); };
 }
 
 void LiveRun::finish(LiveFinal final, bool keep_serving) {
   session_.finish(std::move(final));
-  if (!keep_serving || (options_.wait_s && *options_.wait_s <= 0.0)) return;
+  if (!keep_serving || (options_.wait_s && *options_.wait_s <= 0.0)) {
+    // A page that is watching learns the end before the server goes (its long poll is answered
+    // at once); at most 1.5 s, and not at all when no page asked lately.
+    const auto start = SteadyClock::now();
+    while (session_.pageActive() && !session_.finalServed() && secondsSince(start) < 1.5) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    return;
+  }
   char how_long[64] = "until Ctrl-C";
   if (options_.wait_s) std::snprintf(how_long, sizeof how_long, "for %g s", *options_.wait_s);
   std::printf("live page     %s shows the results %s\n", server_.url().c_str(), how_long);

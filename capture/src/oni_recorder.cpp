@@ -292,7 +292,8 @@ RecordSummary OniRecorder::publish(const RecordingFacts& facts, const std::strin
                          {"color_codec", options_.compress_color ? "jpeg" : "lossless"},
                          {"stop_reason", summary.stop_reason}};
   const RecordingSidecars sidecars = RecordingSidecars::of(out);
-  std::string text = info.dump(2);
+  // A path or reason that is not UTF-8 is written with U+FFFD (JSON is UTF-8).
+  std::string text = info.dump(2, ' ', false, nlohmann::json::error_handler_t::replace);
   text.push_back('\n');
   writeFileAtomically(sidecars.info, text);
   summary.info_file = sidecars.info;

