@@ -178,7 +178,7 @@ void raycast(const TsdfVolume& volume_in, const Intrinsics& in, const Pose& T_W_
               while (z <= z_stop) {
                 const Eigen::Vector3f q = q0 + z * dq;
                 const Eigen::Vector3i g(roundToInt(q.x()), roundToInt(q.y()), roundToInt(q.z()));
-                const Voxel* vox = reader.get(g);
+                const PackedVoxel* vox = reader.get(g);
                 if (!vox) {
                   // An unallocated block holds no surface: jump to where the ray leaves it.
                   float exit_z = std::numeric_limits<float>::infinity();
@@ -194,12 +194,12 @@ void raycast(const TsdfVolume& volume_in, const Intrinsics& in, const Pose& T_W_
                   z = std::max(exit_z, z + 0.01f * min_step_z) + 0.01f * min_step_z;
                   continue;
                 }
-                if (vox->weight <= 0.0f) {
+                if (!vox->observed()) {
                   have_prev = false;
                   z += unknown_step_z;
                   continue;
                 }
-                const float f = vox->tsdf;
+                const float f = vox->tsdf();
                 if (f < 0.0f) {
                   if (!have_prev) {
                     *back_face = true;
@@ -223,30 +223,31 @@ void raycast(const TsdfVolume& volume_in, const Intrinsics& in, const Pose& T_W_
             // would pass the same voxels), -1 to fall back to marching the whole range.
             const auto searchFromHint = [&](float hint, float* bracket, float* before) -> int {
               const Eigen::Vector3f q = q0 + hint * dq;
-              const Voxel* vox = reader.get(
+              const PackedVoxel* vox = reader.get(
                   Eigen::Vector3i(roundToInt(q.x()), roundToInt(q.y()), roundToInt(q.z())));
-              if (!vox || vox->weight <= 0.0f) return -1;
-              if (vox->tsdf >= 0.0f) {  // in front of the surface: march on from here
+              if (!vox || !vox->observed()) return -1;
+              if (vox->tsdf_q >= 0) {  // in front of the surface: march on from here
                 bool back_face = false;
                 const bool hit = march(hint, z_end, bracket, before, &back_face);
                 return hit ? 1 : (back_face ? -1 : 0);
               }
               // Behind it: step back toward the camera until the distance turns positive.
-              float z_neg = hint, f_neg = vox->tsdf;
+              float z_neg = hint, f_neg = vox->tsdf();
               for (int step = 0; step < kMaxBackSteps; ++step) {
                 const float z = z_neg - std::max(min_step_z, -0.8f * f_neg * trunc / metres_per_z);
                 if (z < z_begin) return -1;
                 const Eigen::Vector3f qb = q0 + z * dq;
-                const Voxel* b = reader.get(
+                const PackedVoxel* b = reader.get(
                     Eigen::Vector3i(roundToInt(qb.x()), roundToInt(qb.y()), roundToInt(qb.z())));
-                if (!b || b->weight <= 0.0f) return -1;
-                if (b->tsdf >= 0.0f) {
-                  *bracket = z + (z_neg - z) * b->tsdf / (b->tsdf - f_neg);
+                if (!b || !b->observed()) return -1;
+                const float f_b = b->tsdf();
+                if (f_b >= 0.0f) {
+                  *bracket = z + (z_neg - z) * f_b / (f_b - f_neg);
                   *before = z;
                   return 1;
                 }
                 z_neg = z;
-                f_neg = b->tsdf;
+                f_neg = f_b;
               }
               return -1;
             };
@@ -282,9 +283,9 @@ void raycast(const TsdfVolume& volume_in, const Intrinsics& in, const Pose& T_W_
             maps.normals_W[i] = gradient / norm;
             ++hit_count;
             if (with_colors) {
-              const Voxel* vox = reader.get(
+              const VoxelColor* c = reader.color(
                   Eigen::Vector3i(roundToInt(q.x()), roundToInt(q.y()), roundToInt(q.z())));
-              if (vox) maps.colors[i] = Rgb8(vox->r, vox->g, vox->b);
+              if (c) maps.colors[i] = Rgb8(c->r, c->g, c->b);
             }
           }
         }
