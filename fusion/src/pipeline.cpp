@@ -132,7 +132,7 @@ FrameOutcome Fusion::process(const RgbdFrame& frame, const std::optional<Pose>& 
     if (model_level_ > 0) nearestPerBlock(depth, model_level_, &hint_);
     raycast(volume_, levelIntrinsics(intrinsics_, model_level_), pose,
             config_.preprocess.min_depth_m, config_.preprocess.max_depth_m, false,
-            model_level_ > 0 ? &hint_ : &depth, &model_);
+            model_level_ > 0 ? &hint_ : &depth, &model_, config_.model_unhinted_rays);
     model_current_ = true;
     out.timings.raycast_ms = millisecondsSince(start);
   }
