@@ -1,6 +1,7 @@
 #include "objscan/fusion/raycast.h"
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 #include <limits>
 #include <optional>
@@ -49,6 +50,7 @@ RangeImage projectBlocks(const TsdfVolume::Impl& volume, const Intrinsics& in, c
   const float block_m = volume.voxel_size_m * kBlockSide;
   const float fx = static_cast<float>(in.fx_px), fy = static_cast<float>(in.fy_px);
   const float cx = static_cast<float>(in.cx_px), cy = static_cast<float>(in.cy_px);
+  assert(volume.block_indices.size() == volume.blocks.size());
   tbb::combinable<RangeImage> partial([&] { return RangeImage(in.width_px, in.height_px); });
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, volume.blocks.size(), 256),
                     [&](const tbb::blocked_range<std::size_t>& r) {
@@ -56,7 +58,7 @@ RangeImage projectBlocks(const TsdfVolume::Impl& volume, const Intrinsics& in, c
                       for (std::size_t i = r.begin(); i != r.end(); ++i) {
                         // The block's extent: its voxels plus the one-voxel margin trilinear
                         // interpolation reads.
-                        const Eigen::Vector3f lo = volume.blocks[i].index.cast<float>() * block_m;
+                        const Eigen::Vector3f lo = volume.block_indices[i].cast<float>() * block_m;
                         float z_lo = std::numeric_limits<float>::infinity(), z_hi = -z_lo;
                         float u_lo = z_lo, u_hi = z_hi, v_lo = z_lo, v_hi = z_hi;
                         bool behind = false;

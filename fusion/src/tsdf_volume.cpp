@@ -80,7 +80,7 @@ TsdfVolume& TsdfVolume::operator=(TsdfVolume&&) noexcept = default;
 std::size_t TsdfVolume::blockCount() const { return impl_->blocks.size(); }
 
 std::size_t TsdfVolume::memoryBytes() const {
-  return impl_->blocks.size() * sizeof(VoxelBlock) +
+  return impl_->blocks.size() * (sizeof(VoxelBlock) + sizeof(Eigen::Vector3i)) +
          impl_->map.bucket_count() * (sizeof(std::uint64_t) + sizeof(std::int32_t) + 8);
 }
 
@@ -155,6 +155,7 @@ std::size_t TsdfVolume::integrate(const cv::Mat& depth_m, const cv::Mat& color_r
     if (inserted) {
       volume.blocks.emplace_back();
       volume.blocks.back().index = decodeBlockKey(key);
+      volume.block_indices.push_back(volume.blocks.back().index);
     }
     touched.push_back(&volume.blocks[static_cast<std::size_t>(it->second)]);
   }
@@ -164,8 +165,10 @@ std::size_t TsdfVolume::integrate(const cv::Mat& depth_m, const cv::Mat& color_r
   const Eigen::Vector3f t_CW = -(R_CW * t_WC);
   const Eigen::Vector3f step_x_C = R_CW.col(0) * voxel;
   const auto max_weight = static_cast<std::uint16_t>(config_.max_weight);
-  // 1 / (w + 1) for every weight a voxel can hold: a division per voxel was a tenth of the time.
-  std::vector<float> inv_count(static_cast<std::size_t>(max_weight) + 1);
+  // 1 / (w + 1) for every weight a voxel or its colour can hold: a division per voxel was a
+  // tenth of the time.
+  // The colour's weight goes to 255.
+  std::vector<float> inv_count(std::max<std::size_t>(max_weight, 255) + 1);
   for (std::size_t w = 0; w < inv_count.size(); ++w) {
     inv_count[w] = 1.0f / static_cast<float>(w + 1);
   }
@@ -234,7 +237,7 @@ std::size_t TsdfVolume::integrate(const cv::Mat& depth_m, const cv::Mat& color_r
                   VoxelColor& col = block.colors[row + x];
                   const std::uint8_t* c = color_data + 3 * px;
                   const float cw = col.weight;
-                  const float inv = 1.0f / (cw + 1.0f);
+                  const float inv = inv_count[col.weight];
                   // Rounded by +0.5 and truncation (the value is in [0, 255]): lround is a
                   // library call, three per voxel.
                   const auto blend = [&](std::uint8_t old, std::uint8_t obs) {

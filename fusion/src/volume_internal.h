@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <deque>
 #include <optional>
+#include <vector>
 
 #include <tsl/robin_map.h>
 #include <Eigen/Core>
@@ -100,6 +101,9 @@ struct TsdfVolume::Impl {
   bool has_colors = false;  ///< some integrated frame had colour
   tsl::robin_map<std::uint64_t, std::int32_t, BlockKeyHash> map;
   std::deque<VoxelBlock> blocks;  ///< a deque: blocks never move once allocated
+  /// blocks[i].index, contiguous: the raycast projects every block each frame, and reading the
+  /// index from each 4 kB block was a cache miss per block.
+  std::vector<Eigen::Vector3i> block_indices;
 
   const VoxelBlock* find(const Eigen::Vector3i& b) const {
     if (!blockInRange(b)) return nullptr;
