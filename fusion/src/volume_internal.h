@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <deque>
 #include <optional>
+#include <type_traits>
 #include <vector>
 
 #include <tsl/robin_map.h>
@@ -111,6 +112,10 @@ struct TsdfVolume::Impl {
     return it == map.end() ? nullptr : &blocks[static_cast<std::size_t>(it->second)];
   }
 };
+
+// A snapshot of the volume is a copy of its Impl: keep every member a plain copyable value (no
+// pointers into the blocks).
+static_assert(std::is_copy_constructible_v<TsdfVolume::Impl>);
 
 /// Voxel look-ups along a path (a ray, a block's neighbourhood), remembering the last block.
 /// One per thread.
