@@ -137,15 +137,22 @@ struct Neighbourhood {
   std::array<std::int32_t, 8> numbers{};  ///< index of each block in the volume, -1 if none
 
   /// The voxel at local coordinates (x, y, z), each in 0 .. 8 (8 reaches into a neighbour).
-  const Voxel* voxel(int x, int y, int z, std::int32_t* number = nullptr) const {
+  const PackedVoxel* voxel(int x, int y, int z, std::int32_t* number = nullptr) const {
     const int n = (x >> 3) + 2 * (y >> 3) + 4 * (z >> 3);
     const VoxelBlock* b = blocks[static_cast<std::size_t>(n)];
     if (number) *number = numbers[static_cast<std::size_t>(n)];
     return b ? &b->voxels[static_cast<std::size_t>(localIndex(x & 7, y & 7, z & 7))] : nullptr;
   }
+
+  /// The colour of the voxel at local coordinates (x, y, z); its block must exist.
+  const VoxelColor& color(int x, int y, int z) const {
+    const int n = (x >> 3) + 2 * (y >> 3) + 4 * (z >> 3);
+    return blocks[static_cast<std::size_t>(n)]
+        ->colors[static_cast<std::size_t>(localIndex(x & 7, y & 7, z & 7))];
+  }
 };
 
-bool observed(const Voxel* v) { return v && v->weight > 0.0f; }
+bool observed(const PackedVoxel* v) { return v && v->observed(); }
 
 /// Interpolation parameter of the zero crossing between two distances of opposite sign, kept off
 /// the end points so that vertices of different edges never coincide.
@@ -191,13 +198,14 @@ TriangleMesh extractMesh(const TsdfVolume& volume_in, const std::string& progres
           for (int z = 0; z < kBlockSide; ++z) {
             for (int y = 0; y < kBlockSide; ++y) {
               for (int x = 0; x < kBlockSide; ++x) {
-                const Voxel* v0 = n.voxel(x, y, z);
+                const PackedVoxel* v0 = n.voxel(x, y, z);
                 if (!observed(v0)) continue;
                 for (int axis = 0; axis < 3; ++axis) {
-                  const Voxel* v1 = n.voxel(x + (axis == 0), y + (axis == 1), z + (axis == 2));
-                  if (!observed(v1) || (v0->tsdf < 0.0f) == (v1->tsdf < 0.0f)) continue;
+                  const int x1 = x + (axis == 0), y1 = y + (axis == 1), z1 = z + (axis == 2);
+                  const PackedVoxel* v1 = n.voxel(x1, y1, z1);
+                  if (!observed(v1) || (v0->tsdf_q < 0) == (v1->tsdf_q < 0)) continue;
                   if (out.edge_vertex.empty()) out.edge_vertex.assign(kBlockVoxels * 3, -1);
-                  const float t = crossing(v0->tsdf, v1->tsdf);
+                  const float t = crossing(v0->tsdf(), v1->tsdf());
                   Eigen::Vector3f p = (g0 + Eigen::Vector3i(x, y, z)).cast<float>();
                   p[axis] += t;
                   out.edge_vertex[static_cast<std::size_t>(localIndex(x, y, z) * 3 + axis)] =
@@ -207,8 +215,10 @@ TriangleMesh extractMesh(const TsdfVolume& volume_in, const std::string& progres
                     return static_cast<std::uint8_t>(static_cast<float>(a) +
                                                      t * (static_cast<float>(b) - a) + 0.5f);
                   };
+                  const VoxelColor& c0 = n.color(x, y, z);
+                  const VoxelColor& c1 = n.color(x1, y1, z1);
                   out.colors.push_back(
-                      Rgb8(lerp(v0->r, v1->r), lerp(v0->g, v1->g), lerp(v0->b, v1->b)));
+                      Rgb8(lerp(c0.r, c1.r), lerp(c0.g, c1.g), lerp(c0.b, c1.b)));
                 }
               }
             }
@@ -235,9 +245,10 @@ TriangleMesh extractMesh(const TsdfVolume& volume_in, const std::string& progres
                 int pattern = 0;
                 bool complete = true;
                 for (int c = 0; c < 8 && complete; ++c) {
-                  const Voxel* v = n.voxel(x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1));
+                  const PackedVoxel* v =
+                      n.voxel(x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1));
                   complete = observed(v);
-                  if (complete && v->tsdf < 0.0f) pattern |= 1 << c;
+                  if (complete && v->tsdf_q < 0) pattern |= 1 << c;
                 }
                 if (!complete || pattern == 0 || pattern == 255) continue;
                 for (const Triangle& tri : table.triangles[static_cast<std::size_t>(pattern)]) {

@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include <opencv2/core.hpp>
+#include <tbb/parallel_for.h>
 
 #include "objscan/core/clock.h"
 
@@ -21,7 +22,7 @@ using Clock = SteadyClock;
 void nearestPerBlock(const cv::Mat& depth, int level, cv::Mat* out) {
   const int step = 1 << level;
   out->create(depth.rows / step, depth.cols / step, CV_32FC1);
-  for (int v = 0; v < out->rows; ++v) {
+  tbb::parallel_for(0, out->rows, [&](int v) {
     float* o = out->ptr<float>(v);
     for (int u = 0; u < out->cols; ++u) {
       float nearest = 0.0f;
@@ -33,7 +34,7 @@ void nearestPerBlock(const cv::Mat& depth, int level, cv::Mat* out) {
       }
       o[u] = nearest;
     }
-  }
+  });
 }
 
 }  // namespace
@@ -132,7 +133,7 @@ FrameOutcome Fusion::process(const RgbdFrame& frame, const std::optional<Pose>& 
     if (model_level_ > 0) nearestPerBlock(depth, model_level_, &hint_);
     raycast(volume_, levelIntrinsics(intrinsics_, model_level_), pose,
             config_.preprocess.min_depth_m, config_.preprocess.max_depth_m, false,
-            model_level_ > 0 ? &hint_ : &depth, &model_);
+            model_level_ > 0 ? &hint_ : &depth, &model_, config_.model_unhinted_rays);
     model_current_ = true;
     out.timings.raycast_ms = millisecondsSince(start);
   }

@@ -1,6 +1,7 @@
 #include "objscan/fusion/raycast.h"
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 #include <limits>
 #include <optional>
@@ -49,6 +50,7 @@ RangeImage projectBlocks(const TsdfVolume::Impl& volume, const Intrinsics& in, c
   const float block_m = volume.voxel_size_m * kBlockSide;
   const float fx = static_cast<float>(in.fx_px), fy = static_cast<float>(in.fy_px);
   const float cx = static_cast<float>(in.cx_px), cy = static_cast<float>(in.cy_px);
+  assert(volume.block_indices.size() == volume.blocks.size());
   tbb::combinable<RangeImage> partial([&] { return RangeImage(in.width_px, in.height_px); });
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, volume.blocks.size(), 256),
                     [&](const tbb::blocked_range<std::size_t>& r) {
@@ -56,7 +58,7 @@ RangeImage projectBlocks(const TsdfVolume::Impl& volume, const Intrinsics& in, c
                       for (std::size_t i = r.begin(); i != r.end(); ++i) {
                         // The block's extent: its voxels plus the one-voxel margin trilinear
                         // interpolation reads.
-                        const Eigen::Vector3f lo = volume.blocks[i].index.cast<float>() * block_m;
+                        const Eigen::Vector3f lo = volume.block_indices[i].cast<float>() * block_m;
                         float z_lo = std::numeric_limits<float>::infinity(), z_hi = -z_lo;
                         float u_lo = z_lo, u_hi = z_hi, v_lo = z_lo, v_hi = z_hi;
                         bool behind = false;
@@ -111,15 +113,15 @@ RangeImage projectBlocks(const TsdfVolume::Impl& volume, const Intrinsics& in, c
 
 ModelMaps raycast(const TsdfVolume& volume, const Intrinsics& in, const Pose& T_W_C,
                   float min_depth_m, float max_depth_m, bool with_colors,
-                  const cv::Mat* depth_hint) {
+                  const cv::Mat* depth_hint, UnhintedRays unhinted) {
   ModelMaps maps;
-  raycast(volume, in, T_W_C, min_depth_m, max_depth_m, with_colors, depth_hint, &maps);
+  raycast(volume, in, T_W_C, min_depth_m, max_depth_m, with_colors, depth_hint, &maps, unhinted);
   return maps;
 }
 
 void raycast(const TsdfVolume& volume_in, const Intrinsics& in, const Pose& T_W_C,
              float min_depth_m, float max_depth_m, bool with_colors, const cv::Mat* depth_hint,
-             ModelMaps* maps_out) {
+             ModelMaps* maps_out, UnhintedRays unhinted) {
   const TsdfVolume::Impl& volume = volume_in.impl();
   const float voxel = volume.voxel_size_m;
   const float trunc = volume.truncation_m;
@@ -146,13 +148,19 @@ void raycast(const TsdfVolume& volume_in, const Intrinsics& in, const Pose& T_W_
                      depth_hint->rows != in.height_px)) {
     throw std::invalid_argument("raycast: the depth hint must be CV_32FC1 of the image's size");
   }
+  const bool skip_unhinted = depth_hint && unhinted == UnhintedRays::kSkip;
   tbb::combinable<std::size_t> hits([] { return std::size_t{0}; });
+  // Rays in tiles of pixels rather than rows: neighbouring rays read the same blocks, so a tile
+  // keeps them in the reader's cache and the CPU's.
   tbb::parallel_for(
-      tbb::blocked_range<int>(0, in.height_px), [&](const tbb::blocked_range<int>& r) {
+      tbb::blocked_range2d<int>(0, in.height_px, 16, 0, in.width_px, 32),
+      [&](const tbb::blocked_range2d<int>& r) {
         VoxelReader reader(volume);
         std::size_t& hit_count = hits.local();
-        for (int v = r.begin(); v != r.end(); ++v) {
-          for (int u = 0; u < in.width_px; ++u) {
+        for (int v = r.rows().begin(); v != r.rows().end(); ++v) {
+          for (int u = r.cols().begin(); u != r.cols().end(); ++u) {
+            const float hint = depth_hint ? depth_hint->ptr<float>(v)[u] : 0.0f;
+            if (skip_unhinted && !(hint > 0.0f)) continue;
             const std::size_t tile =
                 static_cast<std::size_t>(v / kTilePx) * range.tiles_x + u / kTilePx;
             const float z_begin = range.near[tile], z_end = range.far[tile];
@@ -178,7 +186,7 @@ void raycast(const TsdfVolume& volume_in, const Intrinsics& in, const Pose& T_W_
               while (z <= z_stop) {
                 const Eigen::Vector3f q = q0 + z * dq;
                 const Eigen::Vector3i g(roundToInt(q.x()), roundToInt(q.y()), roundToInt(q.z()));
-                const Voxel* vox = reader.get(g);
+                const PackedVoxel* vox = reader.get(g);
                 if (!vox) {
                   // An unallocated block holds no surface: jump to where the ray leaves it.
                   float exit_z = std::numeric_limits<float>::infinity();
@@ -194,12 +202,12 @@ void raycast(const TsdfVolume& volume_in, const Intrinsics& in, const Pose& T_W_
                   z = std::max(exit_z, z + 0.01f * min_step_z) + 0.01f * min_step_z;
                   continue;
                 }
-                if (vox->weight <= 0.0f) {
+                if (!vox->observed()) {
                   have_prev = false;
                   z += unknown_step_z;
                   continue;
                 }
-                const float f = vox->tsdf;
+                const float f = vox->tsdf();
                 if (f < 0.0f) {
                   if (!have_prev) {
                     *back_face = true;
@@ -221,38 +229,38 @@ void raycast(const TsdfVolume& volume_in, const Intrinsics& in, const Pose& T_W_
             // and about how far: search from there. Returns 1 when bracketed, 0 when marching on
             // from a reading in front of the surface finds no crossing (a march from the camera
             // would pass the same voxels), -1 to fall back to marching the whole range.
-            const auto searchFromHint = [&](float hint, float* bracket, float* before) -> int {
-              const Eigen::Vector3f q = q0 + hint * dq;
-              const Voxel* vox = reader.get(
+            const auto searchFromHint = [&](float start, float* bracket, float* before) -> int {
+              const Eigen::Vector3f q = q0 + start * dq;
+              const PackedVoxel* vox = reader.get(
                   Eigen::Vector3i(roundToInt(q.x()), roundToInt(q.y()), roundToInt(q.z())));
-              if (!vox || vox->weight <= 0.0f) return -1;
-              if (vox->tsdf >= 0.0f) {  // in front of the surface: march on from here
+              if (!vox || !vox->observed()) return -1;
+              if (vox->tsdf_q >= 0) {  // in front of the surface: march on from here
                 bool back_face = false;
-                const bool hit = march(hint, z_end, bracket, before, &back_face);
+                const bool hit = march(start, z_end, bracket, before, &back_face);
                 return hit ? 1 : (back_face ? -1 : 0);
               }
               // Behind it: step back toward the camera until the distance turns positive.
-              float z_neg = hint, f_neg = vox->tsdf;
+              float z_neg = start, f_neg = vox->tsdf();
               for (int step = 0; step < kMaxBackSteps; ++step) {
                 const float z = z_neg - std::max(min_step_z, -0.8f * f_neg * trunc / metres_per_z);
                 if (z < z_begin) return -1;
                 const Eigen::Vector3f qb = q0 + z * dq;
-                const Voxel* b = reader.get(
+                const PackedVoxel* b = reader.get(
                     Eigen::Vector3i(roundToInt(qb.x()), roundToInt(qb.y()), roundToInt(qb.z())));
-                if (!b || b->weight <= 0.0f) return -1;
-                if (b->tsdf >= 0.0f) {
-                  *bracket = z + (z_neg - z) * b->tsdf / (b->tsdf - f_neg);
+                if (!b || !b->observed()) return -1;
+                const float f_b = b->tsdf();
+                if (f_b >= 0.0f) {
+                  *bracket = z + (z_neg - z) * f_b / (f_b - f_neg);
                   *before = z;
                   return 1;
                 }
                 z_neg = z;
-                f_neg = b->tsdf;
+                f_neg = f_b;
               }
               return -1;
             };
             float bracket = 0.0f, prev_z = 0.0f;
             bool found = false;
-            const float hint = depth_hint ? depth_hint->ptr<float>(v)[u] : 0.0f;
             const int hinted =
                 hint > z_begin && hint < z_end ? searchFromHint(hint, &bracket, &prev_z) : -1;
             if (hinted >= 0) {
@@ -282,9 +290,9 @@ void raycast(const TsdfVolume& volume_in, const Intrinsics& in, const Pose& T_W_
             maps.normals_W[i] = gradient / norm;
             ++hit_count;
             if (with_colors) {
-              const Voxel* vox = reader.get(
+              const VoxelColor* c = reader.color(
                   Eigen::Vector3i(roundToInt(q.x()), roundToInt(q.y()), roundToInt(q.z())));
-              if (vox) maps.colors[i] = Rgb8(vox->r, vox->g, vox->b);
+              if (c) maps.colors[i] = Rgb8(c->r, c->g, c->b);
             }
           }
         }

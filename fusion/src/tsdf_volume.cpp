@@ -1,5 +1,6 @@
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <stdexcept>
 #include <vector>
 
@@ -16,6 +17,9 @@ namespace objscan::fusion {
 
 namespace {
 
+using F4 = float __attribute__((vector_size(16)));
+using I4 = std::int32_t __attribute__((vector_size(16)));
+
 Eigen::Vector3i decodeBlockKey(std::uint64_t key) {
   const auto part = [&](int shift) {
     return static_cast<int>((key >> shift) & ((1u << 21) - 1)) - kBlockCoordLimit;
@@ -29,6 +33,10 @@ void checkImages(const cv::Mat& depth_m, const cv::Mat& color_rgb, const Intrins
   }
   if (depth_m.cols != in.width_px || depth_m.rows != in.height_px) {
     throw std::invalid_argument("integrate: the depth image size differs from the intrinsics'");
+  }
+  // Integration numbers pixels in float, exact below 2^24.
+  if (static_cast<double>(depth_m.cols) * depth_m.rows >= 16777216.0) {
+    throw std::invalid_argument("integrate: images of 2^24 pixels or more are not supported");
   }
   if (!color_rgb.empty() && (color_rgb.type() != CV_8UC3 || color_rgb.size() != depth_m.size())) {
     throw std::invalid_argument("integrate: colour must be CV_8UC3 of the depth image's size");
@@ -51,8 +59,8 @@ void VolumeConfig::validate() const {
     throw std::invalid_argument(
         "the truncation distance must span at least 2 voxels and be at most 1 m");
   }
-  if (!(std::isfinite(max_weight) && max_weight >= 1.0f)) {
-    throw std::invalid_argument("the maximum voxel weight must be at least 1");
+  if (!(std::isfinite(max_weight) && max_weight >= 1.0f && max_weight <= 65535.0f)) {
+    throw std::invalid_argument("the maximum voxel weight must be 1 to 65535 observations");
   }
   if (allocation_stride_px < 1 || allocation_stride_px > 16) {
     throw std::invalid_argument("the allocation stride must be 1 to 16 pixels");
@@ -94,14 +102,14 @@ std::size_t TsdfVolume::copyBlocksInto(TsdfVolume& copy, std::size_t first,
 }
 
 std::size_t TsdfVolume::memoryBytes() const {
-  return impl_->blocks.size() * sizeof(VoxelBlock) +
+  return impl_->blocks.size() * (sizeof(VoxelBlock) + sizeof(Eigen::Vector3i)) +
          impl_->map.bucket_count() * (sizeof(std::uint64_t) + sizeof(std::int32_t) + 8);
 }
 
 std::optional<Voxel> TsdfVolume::voxelAt(const Eigen::Vector3i& g) const {
   const VoxelBlock* block = impl_->find(blockOf(g));
   if (!block) return std::nullopt;
-  return block->voxels[static_cast<std::size_t>(localIndex(g))];
+  return block->voxel(static_cast<std::size_t>(localIndex(g)));
 }
 
 std::optional<float> TsdfVolume::sdfAt(const Eigen::Vector3f& p_W) const {
@@ -169,6 +177,7 @@ std::size_t TsdfVolume::integrate(const cv::Mat& depth_m, const cv::Mat& color_r
     if (inserted) {
       volume.blocks.emplace_back();
       volume.blocks.back().index = decodeBlockKey(key);
+      volume.block_indices.push_back(volume.blocks.back().index);
     }
     touched.push_back(&volume.blocks[static_cast<std::size_t>(it->second)]);
   }
@@ -177,12 +186,30 @@ std::size_t TsdfVolume::integrate(const cv::Mat& depth_m, const cv::Mat& color_r
   const Eigen::Matrix3f R_CW = R_WC.transpose();
   const Eigen::Vector3f t_CW = -(R_CW * t_WC);
   const Eigen::Vector3f step_x_C = R_CW.col(0) * voxel;
-  const float max_weight = config_.max_weight;
+  const auto max_weight = static_cast<std::uint16_t>(config_.max_weight);
+  // 1 / (w + 1) for every weight a voxel or its colour can hold: a division per voxel was a
+  // tenth of the time.
+  // The colour's weight goes to 255.
+  std::vector<float> inv_count(std::max<std::size_t>(max_weight, 255) + 1);
+  for (std::size_t w = 0; w < inv_count.size(); ++w) {
+    inv_count[w] = 1.0f / static_cast<float>(w + 1);
+  }
   const float inv_trunc = 1.0f / trunc;
   const bool has_color = !color_rgb.empty();
   volume.has_colors = volume.has_colors || has_color;
+  const int cols = depth_m.cols, rows = depth_m.rows;
+  // The pixel's centre is at integer coordinates; +0.5 makes truncation round to the nearest.
+  const float u_max = static_cast<float>(cols), v_max = static_cast<float>(rows);
+  const float cu = cx + 0.5f, cv = cy + 0.5f;
+  // Continuous copies, so that a pixel is one number (cv::Mat rows may be padded).
+  const cv::Mat depth_flat = depth_m.isContinuous() ? depth_m : depth_m.clone();
+  const cv::Mat color_flat =
+      color_rgb.empty() || color_rgb.isContinuous() ? color_rgb : color_rgb.clone();
+  const float* depth_data = depth_flat.ptr<float>(0);
+  const std::uint8_t* color_data = has_color ? color_flat.ptr<std::uint8_t>(0) : nullptr;
+  const auto row_px = static_cast<float>(cols);
   tbb::parallel_for(
-      tbb::blocked_range<std::size_t>(0, touched.size()),
+      tbb::blocked_range<std::size_t>(0, touched.size(), 16),
       [&](const tbb::blocked_range<std::size_t>& r) {
         for (std::size_t i = r.begin(); i != r.end(); ++i) {
           VoxelBlock& block = *touched[i];
@@ -190,39 +217,60 @@ std::size_t TsdfVolume::integrate(const cv::Mat& depth_m, const cv::Mat& color_r
           for (int z = 0; z < kBlockSide; ++z) {
             for (int y = 0; y < kBlockSide; ++y) {
               const Eigen::Vector3f p_W = (g0 + Eigen::Vector3i(0, y, z)).cast<float>() * voxel;
-              Eigen::Vector3f p_C = R_CW * p_W + t_CW;
-              Voxel* row = &block.voxels[static_cast<std::size_t>(localIndex(0, y, z))];
-              for (int x = 0; x < kBlockSide; ++x, p_C += step_x_C) {
-                if (p_C.z() <= 0.0f) continue;
-                const float inv_z = 1.0f / p_C.z();
-                const int u = roundToInt(fx * p_C.x() * inv_z + cx);
-                const int v = roundToInt(fy * p_C.y() * inv_z + cy);
-                if (u < 0 || v < 0 || u >= depth_m.cols || v >= depth_m.rows) continue;
-                const float d = depth_m.ptr<float>(v)[u];
+              const Eigen::Vector3f p0_C = R_CW * p_W + t_CW;
+              // The row's 8 projections, 4 at a time (GCC/Clang vector types: SSE2 on x86-64,
+              // NEON on ARM). One voxel after another, with a division and branches each, they
+              // were half the integration's time.
+              alignas(16) float depth_C[kBlockSide], pixel[kBlockSide];
+              for (int half = 0; half < kBlockSide; half += 4) {
+                const F4 xf = F4{0.0f, 1.0f, 2.0f, 3.0f} + static_cast<float>(half);
+                const F4 pz = p0_C.z() + xf * step_x_C.z();
+                const F4 inv_z = 1.0f / pz;
+                const F4 fu = fx * (p0_C.x() + xf * step_x_C.x()) * inv_z + cu;
+                const F4 fv = fy * (p0_C.y() + xf * step_x_C.y()) * inv_z + cv;
+                // NaN and anything off the image fail here; in range, truncation is floor.
+                const I4 inside = (pz > 0.0f) & (fu >= 0.0f) & (fu < u_max) & (fv >= 0.0f) &
+                                  (fv < v_max);
+                const F4 zero = F4{} + 0.0f;
+                const F4 iu = __builtin_convertvector(
+                    __builtin_convertvector(inside ? fu : zero, I4), F4);
+                const F4 iv = __builtin_convertvector(
+                    __builtin_convertvector(inside ? fv : zero, I4), F4);
+                // Row-major pixel number, exact in float below 2^24 pixels; -1 when outside.
+                const F4 px = inside ? iv * row_px + iu : zero - 1.0f;
+                std::memcpy(pixel + half, &px, sizeof px);
+                std::memcpy(depth_C + half, &pz, sizeof pz);
+              }
+              const std::size_t row = static_cast<std::size_t>(localIndex(0, y, z));
+              for (int x = 0; x < kBlockSide; ++x) {
+                if (pixel[x] < 0.0f) continue;
+                const auto px = static_cast<std::size_t>(pixel[x]);
+                const float d = depth_data[px];
                 if (!(d > 0.0f)) continue;
-                const float sdf = d - p_C.z();
+                const float sdf = d - depth_C[x];
                 if (sdf < -trunc) continue;
-                Voxel& vox = row[x];
+                PackedVoxel& vox = block.voxels[row + x];
                 const float tsdf = std::min(1.0f, sdf * inv_trunc);
-                const float w = vox.weight;
-                const float w_new = std::min(w + 1.0f, max_weight);
-                vox.tsdf = (vox.tsdf * w + tsdf) / (w + 1.0f);
+                const std::uint16_t w = vox.weight;
+                vox.tsdf_q = PackedVoxel::quantize(
+                    (vox.tsdf() * static_cast<float>(w) + tsdf) * inv_count[w]);
+                vox.weight = static_cast<std::uint16_t>(std::min<int>(w + 1, max_weight));
                 if (has_color && sdf < trunc) {
-                  const auto* c = color_rgb.ptr<std::uint8_t>(v) + 3 * u;
-                  const float cw = vox.color_weight;
-                  const float inv = 1.0f / (cw + 1.0f);
+                  VoxelColor& col = block.colors[row + x];
+                  const std::uint8_t* c = color_data + 3 * px;
+                  const float cw = col.weight;
+                  const float inv = inv_count[col.weight];
                   // Rounded by +0.5 and truncation (the value is in [0, 255]): lround is a
                   // library call, three per voxel.
                   const auto blend = [&](std::uint8_t old, std::uint8_t obs) {
                     return static_cast<std::uint8_t>(
                         (static_cast<float>(old) * cw + static_cast<float>(obs)) * inv + 0.5f);
                   };
-                  vox.r = blend(vox.r, c[0]);
-                  vox.g = blend(vox.g, c[1]);
-                  vox.b = blend(vox.b, c[2]);
-                  if (vox.color_weight < 255) ++vox.color_weight;
+                  col.r = blend(col.r, c[0]);
+                  col.g = blend(col.g, c[1]);
+                  col.b = blend(col.b, c[2]);
+                  if (col.weight < 255) ++col.weight;
                 }
-                vox.weight = w_new;
               }
             }
           }

@@ -7,6 +7,8 @@
 #include <cstdint>
 #include <deque>
 #include <optional>
+#include <type_traits>
+#include <vector>
 
 #include <tsl/robin_map.h>
 #include <Eigen/Core>
@@ -16,9 +18,44 @@
 
 namespace objscan::fusion {
 
-struct VoxelBlock {
-  std::array<Voxel, kBlockVoxels> voxels{};
+/// A voxel as stored: the signed distance in 1/32767ths of the truncation distance and the
+/// number of observations (capped at VolumeConfig::max_weight), 4 bytes. Integration, raycasting
+/// and meshing read only these; 16 of them share a cache line (a Voxel of floats was 12 bytes, and
+/// the raycast's time went mostly to waiting for memory).
+struct PackedVoxel {
+  std::int16_t tsdf_q = kTsdfScale;
+  std::uint16_t weight = 0;
+
+  static constexpr std::int16_t kTsdfScale = 32767;
+  static constexpr float kTsdfUnit = 1.0f / static_cast<float>(kTsdfScale);
+
+  float tsdf() const { return static_cast<float>(tsdf_q) * kTsdfUnit; }
+  bool observed() const { return weight != 0; }
+  /// t in [-1, 1] to the nearest step (a step is 1 um at a 3 cm truncation).
+  static std::int16_t quantize(float t) {
+    return static_cast<std::int16_t>(t * static_cast<float>(kTsdfScale) + (t < 0.0f ? -0.5f : 0.5f));
+  }
+};
+static_assert(sizeof(PackedVoxel) == 4);
+
+/// A voxel's colour, apart from its distance: only integration near the surface and meshing read
+/// it, so the raycast's and the integration's cache lines hold distances only.
+struct VoxelColor {
+  std::uint8_t r = 0, g = 0, b = 0;
+  std::uint8_t weight = 0;  ///< observations within the truncation band, capped at 255
+};
+
+struct alignas(64) VoxelBlock {
+  std::array<PackedVoxel, kBlockVoxels> voxels{};
+  std::array<VoxelColor, kBlockVoxels> colors{};
   Eigen::Vector3i index = Eigen::Vector3i::Zero();  ///< block coordinates (global voxel / 8)
+
+  /// Voxel i (localIndex) as the public type.
+  Voxel voxel(std::size_t i) const {
+    const PackedVoxel& v = voxels[i];
+    const VoxelColor& c = colors[i];
+    return Voxel{v.tsdf(), static_cast<float>(v.weight), c.r, c.g, c.b, c.weight};
+  }
 };
 
 /// Block coordinates pack into 21 bits each (+-2^20 blocks: +-4900 km at 5.9 mm voxels).
@@ -65,6 +102,9 @@ struct TsdfVolume::Impl {
   bool has_colors = false;  ///< some integrated frame had colour
   tsl::robin_map<std::uint64_t, std::int32_t, BlockKeyHash> map;
   std::deque<VoxelBlock> blocks;  ///< a deque: blocks never move once allocated
+  /// blocks[i].index, contiguous: the raycast projects every block each frame, and reading the
+  /// index from each 4 kB block was a cache miss per block.
+  std::vector<Eigen::Vector3i> block_indices;
 
   const VoxelBlock* find(const Eigen::Vector3i& b) const {
     if (!blockInRange(b)) return nullptr;
@@ -73,6 +113,10 @@ struct TsdfVolume::Impl {
   }
 };
 
+// A snapshot of the volume is a copy of its Impl: keep every member a plain copyable value (no
+// pointers into the blocks).
+static_assert(std::is_copy_constructible_v<TsdfVolume::Impl>);
+
 /// Voxel look-ups along a path (a ray, a block's neighbourhood), remembering the last block.
 /// One per thread.
 class VoxelReader {
@@ -80,9 +124,15 @@ class VoxelReader {
   explicit VoxelReader(const TsdfVolume::Impl& volume) : volume_(volume) {}
 
   /// The voxel at global index g, or nullptr when its block is not allocated.
-  const Voxel* get(const Eigen::Vector3i& g) {
+  const PackedVoxel* get(const Eigen::Vector3i& g) {
     const VoxelBlock* b = block(blockOf(g));
     return b ? &b->voxels[static_cast<std::size_t>(localIndex(g))] : nullptr;
+  }
+
+  /// The colour of the voxel at global index g, or nullptr when its block is not allocated.
+  const VoxelColor* color(const Eigen::Vector3i& g) {
+    const VoxelBlock* b = block(blockOf(g));
+    return b ? &b->colors[static_cast<std::size_t>(localIndex(g))] : nullptr;
   }
 
   /// The block with coordinates b, or nullptr. A hash-map look-up costs tens of nanoseconds;
@@ -110,19 +160,20 @@ class VoxelReader {
       // All 8 voxels in one block (343 of 512 cells): one block look-up.
       const VoxelBlock* b = block(blockOf(Eigen::Vector3i(x0, y0, z0)));
       if (!b) return false;
-      const Voxel* v0 = &b->voxels[static_cast<std::size_t>(localIndex(x0 & 7, y0 & 7, z0 & 7))];
+      const PackedVoxel* v0 =
+          &b->voxels[static_cast<std::size_t>(localIndex(x0 & 7, y0 & 7, z0 & 7))];
       for (int i = 0; i < 8; ++i) {
-        const Voxel& v =
+        const PackedVoxel& v =
             v0[(i & 1) + kBlockSide * ((i >> 1) & 1) + kBlockSide * kBlockSide * ((i >> 2) & 1)];
-        if (v.weight <= 0.0f) return false;
-        c[i] = v.tsdf;
+        if (!v.observed()) return false;
+        c[i] = v.tsdf();
       }
     } else {
       for (int i = 0; i < 8; ++i) {
-        const Voxel* v =
+        const PackedVoxel* v =
             get(Eigen::Vector3i(x0 + (i & 1), y0 + ((i >> 1) & 1), z0 + ((i >> 2) & 1)));
-        if (!v || v->weight <= 0.0f) return false;
-        c[i] = v->tsdf;
+        if (!v || !v->observed()) return false;
+        c[i] = v->tsdf();
       }
     }
     const float x00 = c[0] + tx * (c[1] - c[0]), x10 = c[2] + tx * (c[3] - c[2]);

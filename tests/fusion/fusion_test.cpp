@@ -139,7 +139,8 @@ TEST(TsdfVolume, BlocksAreAllocatedOnlyAroundTheSurface) {
   EXPECT_FALSE(volume.voxelAt(grid(0.5f)).has_value());
   EXPECT_FALSE(volume.voxelAt(grid(1.5f)).has_value());
   EXPECT_TRUE(volume.voxelAt(grid(1.0f)).has_value());
-  EXPECT_EQ(volume.memoryBytes() >= volume.blockCount() * kBlockVoxels * sizeof(Voxel), true);
+  // At least a 2-byte distance and a 2-byte weight per voxel (the colour is stored apart).
+  EXPECT_GE(volume.memoryBytes(), volume.blockCount() * kBlockVoxels * 4);
 }
 
 TEST(TsdfVolume, RejectsSettingsThatCannotWork) {
@@ -208,6 +209,42 @@ TEST(Raycast, WithAHintTheCrossingNearestTheReadingIsFound) {
   EXPECT_NEAR(plain.vertices_W[left].z(), 1.0f, 1e-3f);
   const ModelMaps hinted = raycast(volume, in, Pose::Identity(), 0.3f, 3.0f, false, &far);
   EXPECT_NEAR(hinted.vertices_W[left].z(), 2.0f, 1e-3f);
+}
+
+TEST(Raycast, SkippedRaysWithoutAReadingStayEmptyAndTheOthersAreUnchanged) {
+  // A plane integrated whole; the hint has readings on the left half only. With kSkip the right
+  // half stays empty, and the left half is what kMarch casts, vertex for vertex.
+  const Intrinsics in = centredCamera(160, 120, 142.6);
+  TsdfVolume volume(VolumeConfig{});
+  const cv::Mat depth =
+      renderDepth({{}, {{Eigen::Vector3f(0, 0, 1), 1.0f}}}, in, Pose::Identity());
+  volume.integrate(depth, {}, in, Pose::Identity());
+  cv::Mat hint = depth.clone();
+  hint.colRange(in.width_px / 2, in.width_px).setTo(0.0);
+  const ModelMaps marched =
+      raycast(volume, in, Pose::Identity(), 0.3f, 3.0f, false, &hint, UnhintedRays::kMarch);
+  const ModelMaps skipped =
+      raycast(volume, in, Pose::Identity(), 0.3f, 3.0f, false, &hint, UnhintedRays::kSkip);
+  std::size_t left_hits = 0, right_hits = 0;
+  for (int v = 0; v < in.height_px; ++v) {
+    for (int u = 0; u < in.width_px; ++u) {
+      const std::size_t i = static_cast<std::size_t>(v * in.width_px + u);
+      if (u >= in.width_px / 2) {
+        right_hits += marched.vertices_W[i].allFinite() ? 1 : 0;
+        EXPECT_FALSE(skipped.vertices_W[i].allFinite()) << u << ", " << v;
+        continue;
+      }
+      ASSERT_EQ(marched.vertices_W[i].allFinite(), skipped.vertices_W[i].allFinite());
+      if (!marched.vertices_W[i].allFinite()) continue;
+      ++left_hits;
+      EXPECT_EQ(marched.vertices_W[i], skipped.vertices_W[i]);
+      EXPECT_EQ(marched.normals_W[i], skipped.normals_W[i]);
+    }
+  }
+  // Each half holds 50 % of the pixels; the outermost ones' cells reach past the band's edge.
+  EXPECT_GE(left_hits, static_cast<std::size_t>(0.45 * in.width_px * in.height_px));
+  EXPECT_GE(right_hits, static_cast<std::size_t>(0.45 * in.width_px * in.height_px));
+  EXPECT_EQ(skipped.hits, left_hits);
 }
 
 // --- Marching cubes ------------------------------------------------------------------------------

@@ -25,8 +25,8 @@ struct VolumeConfig {
   /// (KinectFusion's default, about three standard deviations of an Xtion's depth noise at 2 m),
   /// or 3 voxels when that is more. truncation() gives the value used.
   std::optional<float> truncation_m;
-  /// A voxel's weight stops growing here, so the running average keeps adapting (KinectFusion
-  /// caps it at 128 frames).
+  /// A voxel's weight (its number of observations) stops growing here, so the running average
+  /// keeps adapting (KinectFusion caps it at 128 frames). 1 to 65535; a fraction is dropped.
   float max_weight = 128.0f;
   /// Block allocation looks at every n-th pixel in both directions: at 3 m a pixel covers 5 mm, so
   /// 4 pixels stay well under a block's 4.7 cm and no block in the band is missed.
@@ -37,9 +37,11 @@ struct VolumeConfig {
   void validate() const;
 };
 
-/// One voxel: truncated signed distance in units of the truncation distance (-1 .. 1, positive in
-/// front of the surface), its weight (0 = never observed), and a colour averaged over the
-/// observations within the truncation band (color_weight of them, capped at 255).
+/// One voxel as voxelAt returns it: truncated signed distance in units of the truncation distance
+/// (-1 .. 1, positive in front of the surface; stored to 1/32767), its weight (observations, 0 =
+/// never observed), and a colour averaged over the observations within the truncation band
+/// (color_weight of them, capped at 255). The volume stores the distance and weight in 4 bytes
+/// and the colour apart (fusion/src/volume_internal.h).
 struct Voxel {
   float tsdf = 1.0f;
   float weight = 0.0f;
