@@ -96,6 +96,7 @@ std::size_t TsdfVolume::copyBlocksInto(TsdfVolume& copy, std::size_t first,
     }
     // Blocks of the copy are appended in this volume's order, so index i is always the next one.
     to.blocks.push_back(block);
+    to.block_indices.push_back(block.index);
     to.map.emplace(blockKey(block.index), static_cast<std::int32_t>(i));
   }
   return std::max(first, end);

@@ -23,8 +23,10 @@ namespace {
 
 namespace fs = std::filesystem;
 
-/// Peak memory of fusion and meshing per byte of TSDF volume, and the rest of the process.
-constexpr double kPeakPerVolumeByte = 2.5;
+/// Peak memory of fusion and meshing per byte of TSDF volume, and the rest of the process
+/// (measured on TUM fr2/desk with 4-byte voxels: peaks of 3.5 and 2.9 times the volume at 3 and
+/// 2 mm, which 3.2 times plus 150 MB covers; docs/fusion.md, "Memory").
+constexpr double kPeakPerVolumeByte = 3.2;
 constexpr double kFusionBaseBytes = 150e6;
 
 std::string voxelText(float voxel_m) {

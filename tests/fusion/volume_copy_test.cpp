@@ -2,9 +2,12 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include <opencv2/core.hpp>
 
 #include "objscan/fusion/marching_cubes.h"
+#include "objscan/fusion/raycast.h"
 #include "objscan/fusion/tsdf_volume.h"
 #include "test_support.h"
 
@@ -46,6 +49,18 @@ void expectSameVoxels(const TsdfVolume& a, const TsdfVolume& b) {
     }
   }
   EXPECT_GT(observed, 100u);  // the sample meets the surface's band
+  // The copy raycasts as the volume does (its block list, its colours).
+  const Intrinsics k = testing::centredCamera(160, 120, 130.0);
+  const ModelMaps ra = raycast(a, k, Pose::Identity(), 0.3f, 3.0f, true);
+  const ModelMaps rb = raycast(b, k, Pose::Identity(), 0.3f, 3.0f, true);
+  EXPECT_GT(ra.hits, 1000u);
+  EXPECT_EQ(ra.hits, rb.hits);
+  ASSERT_EQ(ra.colors.size(), rb.colors.size());
+  for (std::size_t i = 0; i < ra.vertices_W.size(); ++i) {
+    if (!std::isfinite(ra.vertices_W[i].x())) continue;
+    ASSERT_EQ(ra.vertices_W[i], rb.vertices_W[i]) << i;
+    ASSERT_EQ(ra.colors[i], rb.colors[i]) << i;
+  }
 }
 
 TEST(TsdfVolumeCopy, InChunksTheCopyEqualsTheVolumeAndFollowsItsUpdates) {
