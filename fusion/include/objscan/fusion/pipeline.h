@@ -22,9 +22,11 @@ struct FusionConfig {
   TrackingConfig tracking;
   /// A frame with fewer valid depth readings than this share of its pixels is skipped.
   float min_valid_fraction = 0.01f;
-  /// The pyramid level the tracking model is cast at: 0 = the frame's resolution, 1 = half
-  /// (0 to 2; a pyramid with fewer levels uses its coarsest).
-  int model_level = 1;
+  /// The pyramid level the tracking model is cast at: 0 = the frame's resolution, 1 = half,
+  /// 2 = a quarter (a pyramid with fewer levels uses its coarsest). A quarter: the same ATE on
+  /// TUM, 7-Scenes and the synthetic desk as half, a raycast 3.4 ms per frame shorter
+  /// (docs/fusion.md, "Track").
+  int model_level = 2;
   /// Rays of the model cast after integrating, at pixels where the frame has no reading: kSkip
   /// leaves them empty. They were a third of that raycast's time on 7-Scenes at 5.86 mm, and the
   /// ATE moved by at most 0.1 mm on TUM fr2/desk, 7-Scenes and the synthetic desk (2026-11-25).
