@@ -142,8 +142,8 @@ LiveSession::~LiveSession() {
 void LiveSession::stopWorkerLocked() {
   stopping_ = true;
   // The fusing thread owns the copy except while the worker works on it; then the worker frees
-  // it when it ends.
-  if (copy_state_ != CopyState::kWorking) {
+  // it when it ends. (Called again once stopped, the state no longer says who holds it.)
+  if (!worker_holds_copy_) {
     copy_.reset();
     extra_bytes_ = 0.0;
   }
@@ -194,6 +194,7 @@ void LiveSession::onFrame(const pipeline::FrameEvent& e) {
         {
           std::lock_guard lock(mutex_);
           copy_state_ = CopyState::kWorking;
+          worker_holds_copy_ = true;
         }
         work_.notify_all();
       }
@@ -310,7 +311,13 @@ void LiveSession::worker() {
       work_.wait(lock, [this] {
         return copy_state_ == CopyState::kWorking || copy_state_ == CopyState::kStopped;
       });
-      if (copy_state_ == CopyState::kStopped) return;
+      if (copy_state_ == CopyState::kStopped) {
+        // Stopped before this round began: the copy handed over is freed here.
+        worker_holds_copy_ = false;
+        copy_.reset();
+        extra_bytes_ = 0.0;
+        return;
+      }
       at_frame = copy_frame_;
     }
     std::shared_ptr<Objects> objects = discoverOnCopy(++round, at_frame);
@@ -319,6 +326,7 @@ void LiveSession::worker() {
     {
       std::lock_guard lock(mutex_);
       stopped = copy_state_ == CopyState::kStopped;
+      worker_holds_copy_ = false;
       if (stopped) {
         copy_.reset();  // the worker held it; fusion is over
         extra_bytes_ = 0.0;

@@ -154,6 +154,7 @@ class LiveSession {
   // the worker is idle, read by the worker while it works (never both).
   enum class CopyState { kIdle, kCopying, kWorking, kStopped };
   CopyState copy_state_ = CopyState::kIdle;
+  bool worker_holds_copy_ = false;  ///< from kWorking until the worker's round has ended
   std::unique_ptr<fusion::TsdfVolume> copy_;
   std::size_t copy_next_ = 0;
   std::int64_t copy_frame_ = 0;  ///< the frame the copy was begun at

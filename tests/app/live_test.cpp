@@ -328,6 +328,21 @@ TEST(LiveServer, ASourceNamedInLatin1IsServed) {
   EXPECT_TRUE(fs::is_regular_file(dir / "f" / "mesh.ply"));
 }
 
+// Fusion ending while an online discovery round runs on the volume's copy (rounds back to back,
+// every 0.1 s): the round's copy stays alive until the round ends (it was freed under it once,
+// when the stage changed twice), and the run ends cleanly.
+TEST(LiveServer, FusionEndingDuringADiscoveryRoundIsClean) {
+  TempDir dir;
+  for (int run = 0; run < 3; ++run) {
+    const fs::path out = dir / std::string("f").append(std::to_string(run));
+    const testing::ProcessResult r =
+        testing::objscan({"fuse", "synth:3", "--end", "40", "--out", out.string(), "--serve", "0",
+                          "--serve-wait", "0", "--live-discovery-every", "0.1"});
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_TRUE(fs::is_regular_file(out / "mesh.ply"));
+  }
+}
+
 /// fuse --serve: the page's state follows the fusion and ends with the mesh linked.
 TEST(LiveServer, FuseServesTheFinalState) {
   TempDir dir;
