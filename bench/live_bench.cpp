@@ -49,7 +49,8 @@ struct Run {
 long long fetch(int port, const std::string& target) {
   char error[128] = "";
   mg_connection* conn = mg_download("127.0.0.1", port, 0, error, sizeof error,
-                                    "GET %s HTTP/1.0\r\nHost: 127.0.0.1\r\n\r\n", target.c_str());
+                                    "GET %s HTTP/1.0\r\nHost: 127.0.0.1:%d\r\n\r\n", target.c_str(),
+                                    port);
   if (!conn) return -1;
   const mg_response_info* info = mg_get_response_info(conn);
   const bool ok = info && info->status_code == 200;
@@ -60,17 +61,19 @@ long long fetch(int port, const std::string& target) {
   return ok ? size : -1;
 }
 
-/// The "after" of the next long poll: the seq of a state answer.
-std::uint64_t seqOf(int port, std::uint64_t after) {
+/// The "after" of the next long poll: the seq of a state answer; `final` set once the state is
+/// the run's last (the page stops asking then); `after` itself when the request failed.
+std::uint64_t seqOf(int port, std::uint64_t after, bool* final) {
   char error[128] = "";
   mg_connection* conn = mg_download("127.0.0.1", port, 0, error, sizeof error,
-                                    "GET /api/state?after=%llu HTTP/1.0\r\nHost: x\r\n\r\n",
-                                    static_cast<unsigned long long>(after));
+                                    "GET /api/state?after=%llu HTTP/1.0\r\nHost: 127.0.0.1:%d\r\n\r\n",
+                                    static_cast<unsigned long long>(after), port);
   if (!conn) return after;
   std::string body;
   char buffer[16384];
   for (int n; (n = mg_read(conn, buffer, sizeof buffer)) > 0;) body.append(buffer, static_cast<std::size_t>(n));
   mg_close_connection(conn);
+  *final = body.find("\"final\":{") != std::string::npos;
   const std::size_t at = body.find("\"seq\":");
   return at == std::string::npos ? after : std::strtoull(body.c_str() + at + 6, nullptr, 10);
 }
@@ -108,11 +111,17 @@ Run runObjscan(std::vector<std::string> args, int clients) {
       for (int c = 0; c < clients; ++c) {
         threads.emplace_back([port, &done, &requests] {
           std::uint64_t after = 0;
-          while (!done.load()) {
-            after = seqOf(port, after);
-            const bool ok = fetch(port, "/api/model.jpg?p=" + std::to_string(after)) >= 0;
+          bool final = false;
+          while (!done.load() && !final) {
+            const std::uint64_t seq = seqOf(port, after, &final);
+            if (seq == after) {  // no answer, or nothing new: as the page, ask again later
+              std::this_thread::sleep_for(std::chrono::milliseconds(100));
+              continue;
+            }
+            after = seq;
+            fetch(port, "/api/model.jpg?p=" + std::to_string(after));
             fetch(port, "/api/color.jpg?p=" + std::to_string(after));
-            requests += ok ? 3 : 2;
+            requests += 3;
           }
         });
       }
