@@ -241,6 +241,12 @@ TEST(LiveServer, APortInUseIsOneErrorBeforeAnythingIsWritten) {
                                                 (dir / "f").string(), "--serve", address}),
                               2, "cannot listen");
   EXPECT_FALSE(fs::exists(dir / "f"));
+  // An address that is not this machine's (TEST-NET-1, RFC 5737) cannot be listened on either.
+  testing::expectOneErrorLine(
+      testing::objscan({"scan", "synth:3", "--frames", "5", "--out", (dir / "n").string(),
+                        "--serve", "192.0.2.1:8080", "--no-catalog"}),
+      2, "--serve 192.0.2.1:8080: cannot listen");
+  EXPECT_FALSE(fs::exists(dir / "n"));
 }
 
 TEST(LiveServer, BadServeValuesAreUsageErrors) {
