@@ -87,9 +87,8 @@ NormalEquations accumulate(const DepthLevel& frame, const ModelMaps& model, cons
   return tbb::parallel_reduce(
       tbb::blocked_range<int>(0, (height + stride - 1) / stride), NormalEquations(),
       [&](const tbb::blocked_range<int>& rows, NormalEquations sum) {
-        // Upper triangle of J^T W J (21 values) and J^T W r (6), single precision within a
-        // row, double across rows. The pairs found are collected in a batch, structure of
-        // arrays, and summed 4 at a time: the sums cost as much as finding the pairs otherwise.
+        // Upper triangle of J^T W J (21 values) and J^T W r (6), single precision per lane
+        // within a row, double across rows.
         Float4 acc[27];
         const auto splat = [](float x) { return Float4{x, x, x, x}; };
         const Float4 zero = splat(0.0f);

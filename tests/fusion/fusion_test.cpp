@@ -425,9 +425,8 @@ TEST(Icp, SampledFinestLevelTracksAsTheFullOne) {
   ASSERT_GT(stride, 1);
   const TrackingResult full = trackFrame(buildPyramid(depth, f.in, f.config.preprocess), f.model,
                                          Pose::Identity(), f.config.tracking);
-  const TrackingResult sampled =
-      trackFrame(buildPyramid(depth, f.in, f.config.preprocess, stride), f.model,
-                 Pose::Identity(), f.config.tracking);
+  const TrackingResult sampled = trackFrame(buildPyramid(depth, f.in, f.config.preprocess, stride),
+                                            f.model, Pose::Identity(), f.config.tracking);
   ASSERT_TRUE(full.ok && sampled.ok);
   // The same pairs in the same order; only TBB's split of the sums may differ (float rounding).
   EXPECT_EQ(sampled.inliers, full.inliers);
