@@ -1,17 +1,19 @@
 #include "objscan/fusion/icp.h"
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
-#include <iterator>
+#include <cstring>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_reduce.h>
 
 #include <Eigen/Cholesky>
-#include "grid_math.h"
 
 namespace objscan::fusion {
 
@@ -34,6 +36,26 @@ struct NormalEquations {
   }
 };
 
+using Float4 = float __attribute__((vector_size(16)));  // SSE2 on the default x86-64 target
+
+float horizontalSum(Float4 x) { return (x[0] + x[1]) + (x[2] + x[3]); }
+
+using Int4 = std::int32_t __attribute__((vector_size(16)));
+
+/// Up to 4 frame points with a normal, structure of arrays, camera frame (lanes from `count` on
+/// are unused, and zero).
+struct Lanes {
+  alignas(16) float p[3][4];
+  alignas(16) float n[3][4];
+  int count = 0;
+};
+
+Float4 load(const float* x) {
+  Float4 v;
+  std::memcpy(&v, x, sizeof v);
+  return v;
+}
+
 /// Sums over every `stride`-th pixel of every `stride`-th row of `frame`, each associated with
 /// the model pixel it projects to (the model may have another resolution than the frame).
 NormalEquations accumulate(const DepthLevel& frame, const ModelMaps& model, const Pose& T_W_C,
@@ -49,57 +71,113 @@ NormalEquations accumulate(const DepthLevel& frame, const ModelMaps& model, cons
   const float max_d2 = config.max_distance_m * config.max_distance_m;
   const float min_cos = std::cos(config.max_angle_rad);
   const float huber = config.huber_m;
-  const int width = frame.depth_m.cols;
+  // The frame's maps may hold every n-th pixel only (DepthLevel::sample_stride_px): step through
+  // them by what remains of `stride`.
+  const int sampled = frame.sample_stride_px;
+  if (sampled < 1 || stride % sampled != 0) {
+    throw std::invalid_argument("trackFrame: the frame's maps hold every " +
+                                std::to_string(sampled) + "th pixel, but tracking reads every " +
+                                std::to_string(stride) + "th: build the pyramid with the stride " +
+                                "tracking uses (or 1)");
+  }
+  stride /= sampled;
+  const int width = (frame.depth_m.cols + sampled - 1) / sampled;
+  const int height = (frame.depth_m.rows + sampled - 1) / sampled;
+  assert(frame.vertices_C.size() == static_cast<std::size_t>(width) * height);
   return tbb::parallel_reduce(
-      tbb::blocked_range<int>(0, (frame.depth_m.rows + stride - 1) / stride), NormalEquations(),
+      tbb::blocked_range<int>(0, (height + stride - 1) / stride), NormalEquations(),
       [&](const tbb::blocked_range<int>& rows, NormalEquations sum) {
-        // Upper triangle of J^T W J (21 values) and J^T W r (6), single precision within a
-        // row, double across rows. Written out: Eigen's 6x6 rank update is not inlined.
-        float acc[27];
+        // Upper triangle of J^T W J (21 values) and J^T W r (6), single precision per lane
+        // within a row, double across rows.
+        Float4 acc[27];
+        const auto splat = [](float x) { return Float4{x, x, x, x}; };
+        const Float4 zero = splat(0.0f);
+        // Four points at a time: transformed, projected and gated in SSE2 vectors, with only
+        // the model's vertex and normal fetched lane by lane. A lane that fails a gate gets
+        // weight 0 (and zeros in place of NaN), which adds nothing to the sums.
+        const auto addLanes = [&](const Lanes& l, NormalEquations& s) {
+          const Float4 px = load(l.p[0]), py = load(l.p[1]), pz = load(l.p[2]);
+          const Float4 nx = load(l.n[0]), ny = load(l.n[1]), nz = load(l.n[2]);
+          const Float4 mx = R_MC(0, 0) * px + R_MC(0, 1) * py + R_MC(0, 2) * pz + t_MC.x();
+          const Float4 my = R_MC(1, 0) * px + R_MC(1, 1) * py + R_MC(1, 2) * pz + t_MC.y();
+          const Float4 mz = R_MC(2, 0) * px + R_MC(2, 1) * py + R_MC(2, 2) * pz + t_MC.z();
+          Int4 ok = (Int4{0, 1, 2, 3} < l.count) & (mz > 0.0f);
+          const Float4 safe_z = ok ? mz : splat(1.0f);
+          // Pixel coordinates plus one half: their floor is the nearest pixel (roundToInt).
+          const Float4 uf = fx * mx / safe_z + (cx + 0.5f), vf = fy * my / safe_z + (cy + 0.5f);
+          ok &= (uf >= 0.0f) & (uf < static_cast<float>(in.width_px)) & (vf >= 0.0f) &
+                (vf < static_cast<float>(in.height_px));
+          // Truncation is the floor here: the coordinates of lanes still ok are >= 0.
+          const Int4 j = __builtin_convertvector(ok ? vf : zero, Int4) * in.width_px +
+                         __builtin_convertvector(ok ? uf : zero, Int4);
+          alignas(16) float m[3][4], nm[3][4];
+          for (int k = 0; k < 4; ++k) {
+            const Eigen::Vector3f& vertex = model.vertices_W[static_cast<std::size_t>(j[k])];
+            const Eigen::Vector3f& normal = model.normals_W[static_cast<std::size_t>(j[k])];
+            for (int c = 0; c < 3; ++c) {
+              m[c][k] = vertex[c];
+              nm[c][k] = normal[c];
+            }
+          }
+          Float4 qx = load(nm[0]), qy = load(nm[1]), qz = load(nm[2]);
+          ok &= (qx == qx) & (qy == qy) & (qz == qz);  // the model has a normal there
+          const Float4 wx = R(0, 0) * px + R(0, 1) * py + R(0, 2) * pz + t.x();
+          const Float4 wy = R(1, 0) * px + R(1, 1) * py + R(1, 2) * pz + t.y();
+          const Float4 wz = R(2, 0) * px + R(2, 1) * py + R(2, 2) * pz + t.z();
+          const Float4 dx = wx - load(m[0]), dy = wy - load(m[1]), dz = wz - load(m[2]);
+          ok &= dx * dx + dy * dy + dz * dz <= max_d2;
+          const Float4 rnx = R(0, 0) * nx + R(0, 1) * ny + R(0, 2) * nz;
+          const Float4 rny = R(1, 0) * nx + R(1, 1) * ny + R(1, 2) * nz;
+          const Float4 rnz = R(2, 0) * nx + R(2, 1) * ny + R(2, 2) * nz;
+          ok &= rnx * qx + rny * qy + rnz * qz >= min_cos;
+          qx = ok ? qx : zero;
+          qy = ok ? qy : zero;
+          qz = ok ? qz : zero;
+          const Float4 r = ok ? qx * dx + qy * dy + qz * dz : zero;
+          const Float4 abs_r = r < 0.0f ? -r : r;
+          const Float4 w = ok ? (abs_r <= huber ? splat(1.0f) : huber / abs_r) : zero;
+          // J = [p x n, n]: the residual's derivative for a small motion (rotation first).
+          const Float4 J[6] = {wy * qz - wz * qy, wz * qx - wx * qz, wx * qy - wy * qx, qx, qy, qz};
+          int e = 0;
+          for (int a = 0; a < 6; ++a) {
+            const Float4 wj = w * J[a];
+            for (int b = a; b < 6; ++b) acc[e++] += wj * J[b];
+            acc[21 + a] -= wj * r;
+          }
+          for (int k = 0; k < 4; ++k) s.inliers += ok[k] != 0 ? 1 : 0;
+          s.squared_residuals += static_cast<double>(horizontalSum(r * r));
+        };
+        Lanes lanes;
         for (int row = rows.begin(); row != rows.end(); ++row) {
           const int v = row * stride;
-          std::fill(std::begin(acc), std::end(acc), 0.0f);
+          for (Float4& a : acc) a = zero;
+          const std::size_t first = static_cast<std::size_t>(v) * width;
+          const Eigen::Vector3f* points = frame.vertices_C.data() + first;
+          const Eigen::Vector3f* normals = frame.normals_C.data() + first;
           for (int u = 0; u < width; u += stride) {
-            const std::size_t i = static_cast<std::size_t>(v) * width + u;
-            const Eigen::Vector3f& n_C = frame.normals_C[i];
-            if (!n_C.allFinite()) continue;
+            if (std::isnan(normals[u].x())) continue;  // a normal is NaN in all or none
             ++sum.candidates;
-            const Eigen::Vector3f& p_C = frame.vertices_C[i];
-            const Eigen::Vector3f p_M = R_MC * p_C + t_MC;
-            if (p_M.z() <= 0.0f) continue;
-            const int mu = roundToInt(fx * p_M.x() / p_M.z() + cx);
-            const int mv = roundToInt(fy * p_M.y() / p_M.z() + cy);
-            if (mu < 0 || mv < 0 || mu >= in.width_px || mv >= in.height_px) continue;
-            const std::size_t j = static_cast<std::size_t>(mv) * in.width_px + mu;
-            const Eigen::Vector3f& m = model.vertices_W[j];
-            const Eigen::Vector3f& nm = model.normals_W[j];
-            if (!nm.allFinite()) continue;
-            const Eigen::Vector3f p_W = R * p_C + t;
-            const Eigen::Vector3f d = p_W - m;
-            if (d.squaredNorm() > max_d2) continue;
-            if ((R * n_C).dot(nm) < min_cos) continue;
-            const float r = nm.dot(d);
-            const float w = std::abs(r) <= huber ? 1.0f : huber / std::abs(r);
-            // J = [p x n, n]: the residual's derivative for a small motion (rotation first).
-            const float J[6] = {p_W.y() * nm.z() - p_W.z() * nm.y(),
-                                p_W.z() * nm.x() - p_W.x() * nm.z(),
-                                p_W.x() * nm.y() - p_W.y() * nm.x(),
-                                nm.x(),
-                                nm.y(),
-                                nm.z()};
-            int k = 0;
-            for (int a = 0; a < 6; ++a) {
-              const float wa = w * J[a];
-              for (int b = a; b < 6; ++b) acc[k++] += wa * J[b];
-              acc[21 + a] -= wa * r;
+            const int k = lanes.count++;
+            for (int c = 0; c < 3; ++c) {
+              lanes.p[c][k] = points[u][c];
+              lanes.n[c][k] = normals[u][c];
             }
-            ++sum.inliers;
-            sum.squared_residuals += static_cast<double>(r) * r;
+            if (lanes.count == 4) {
+              addLanes(lanes, sum);
+              lanes.count = 0;
+            }
+          }
+          if (lanes.count > 0) {
+            for (int k = lanes.count; k < 4; ++k) {
+              for (int c = 0; c < 3; ++c) lanes.p[c][k] = lanes.n[c][k] = 0.0f;
+            }
+            addLanes(lanes, sum);
+            lanes.count = 0;
           }
           int k = 0;
           for (int a = 0; a < 6; ++a) {
-            for (int b = a; b < 6; ++b) sum.A(a, b) += acc[k++];
-            sum.b(a) += acc[21 + a];
+            for (int b = a; b < 6; ++b) sum.A(a, b) += horizontalSum(acc[k++]);
+            sum.b(a) += horizontalSum(acc[21 + a]);
           }
         }
         return sum;

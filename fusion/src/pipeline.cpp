@@ -99,7 +99,8 @@ FrameOutcome Fusion::process(const RgbdFrame& frame, const std::optional<Pose>& 
     out.status = FrameStatus::kFirst;
     out.timings.preprocess_ms = millisecondsSince(start);
   } else {
-    buildPyramid(depth, intrinsics_, config_.preprocess, &pyramid_);
+    buildPyramid(depth, intrinsics_, config_.preprocess, &pyramid_,
+                 config_.tracking.finest_level_stride);
     out.timings.preprocess_ms = millisecondsSince(start);
     start = Clock::now();
     if (!model_current_) {

@@ -71,6 +71,54 @@ void normalsInto(const std::vector<Eigen::Vector3f>& vertices_C, int width, int 
   });
 }
 
+/// Vertices and normals at every `stride`-th pixel of every `stride`-th row only, computed from the
+/// depth as backProject and normalsInto would compute them there (the same arithmetic, so the
+/// same values), into compact maps of ceil(cols / stride) x ceil(rows / stride) samples.
+void sampledVerticesAndNormals(const cv::Mat& depth_m, const Intrinsics& in, int stride,
+                               std::vector<Eigen::Vector3f>* vertices,
+                               std::vector<Eigen::Vector3f>* normals) {
+  const int width = depth_m.cols, height = depth_m.rows;
+  const int cols = (width + stride - 1) / stride, rows = (height + stride - 1) / stride;
+  vertices->resize(static_cast<std::size_t>(cols) * rows);
+  normals->resize(vertices->size());
+  const float fx_inv = 1.0f / static_cast<float>(in.fx_px);
+  const float fy_inv = 1.0f / static_cast<float>(in.fy_px);
+  const float cx = static_cast<float>(in.cx_px), cy = static_cast<float>(in.cy_px);
+  const Eigen::Vector3f nan = Eigen::Vector3f::Constant(kNaN);
+  forEachRow(rows, [&](int row) {
+    const int v = row * stride;
+    const float* d = depth_m.ptr<float>(v);
+    const float* below = v + 1 < height ? depth_m.ptr<float>(v + 1) : nullptr;
+    const float y = static_cast<float>(v) - cy, y_below = static_cast<float>(v + 1) - cy;
+    Eigen::Vector3f* vert = vertices->data() + static_cast<std::size_t>(row) * cols;
+    Eigen::Vector3f* norm = normals->data() + static_cast<std::size_t>(row) * cols;
+    for (int col = 0; col < cols; ++col) {
+      const int u = col * stride;
+      const float z = d[u];
+      const float x = static_cast<float>(u) - cx;
+      if (!(z > 0.0f)) {
+        vert[col] = nan;
+        norm[col] = nan;
+        continue;
+      }
+      const Eigen::Vector3f p(x * z * fx_inv, y * z * fy_inv, z);
+      vert[col] = p;
+      norm[col] = nan;
+      if (!below || u + 1 >= width) continue;
+      const float z_right = d[u + 1], z_down = below[u];
+      if (!(z_right > 0.0f) || !(z_down > 0.0f)) continue;
+      const Eigen::Vector3f right((static_cast<float>(u + 1) - cx) * z_right * fx_inv,
+                                  y * z_right * fy_inv, z_right);
+      const Eigen::Vector3f down(x * z_down * fx_inv, y_below * z_down * fy_inv, z_down);
+      Eigen::Vector3f n = (right - p).cross(down - p);
+      const float length = n.norm();
+      if (!(length > 0.0f)) continue;
+      n /= length;
+      norm[col] = n.dot(p) > 0.0f ? Eigen::Vector3f(-n) : n;
+    }
+  });
+}
+
 /// Half resolution: each pixel averages the valid pixels of its 2x2 block that lie within
 /// `band_m` of the nearest of them (so that a block straddling an edge does not average the
 /// foreground with the background).
@@ -156,7 +204,11 @@ std::vector<Eigen::Vector3f> computeNormals(const std::vector<Eigen::Vector3f>& 
 }
 
 void buildPyramid(const cv::Mat& clipped_depth_m, const Intrinsics& intrinsics,
-                  const PreprocessConfig& config, DepthPyramid* pyramid) {
+                  const PreprocessConfig& config, DepthPyramid* pyramid,
+                  int finest_sample_stride_px) {
+  if (finest_sample_stride_px < 1) {
+    throw std::invalid_argument("buildPyramid: the finest level's sample stride must be >= 1");
+  }
   pyramid->levels.resize(static_cast<std::size_t>(config.pyramid_levels));
   for (int level = 0; level < config.pyramid_levels; ++level) {
     DepthLevel& l = pyramid->levels[static_cast<std::size_t>(level)];
@@ -178,15 +230,21 @@ void buildPyramid(const cv::Mat& clipped_depth_m, const Intrinsics& intrinsics,
     } else {
       clipped_depth_m.copyTo(l.depth_m);
     }
-    backProject(l.depth_m, l.intrinsics, &l.vertices_C);
-    normalsInto(l.vertices_C, l.depth_m.cols, l.depth_m.rows, &l.normals_C);
+    l.sample_stride_px = level == 0 ? finest_sample_stride_px : 1;
+    if (l.sample_stride_px > 1) {
+      sampledVerticesAndNormals(l.depth_m, l.intrinsics, l.sample_stride_px, &l.vertices_C,
+                                &l.normals_C);
+    } else {
+      backProject(l.depth_m, l.intrinsics, &l.vertices_C);
+      normalsInto(l.vertices_C, l.depth_m.cols, l.depth_m.rows, &l.normals_C);
+    }
   }
 }
 
 DepthPyramid buildPyramid(const cv::Mat& clipped_depth_m, const Intrinsics& intrinsics,
-                          const PreprocessConfig& config) {
+                          const PreprocessConfig& config, int finest_sample_stride_px) {
   DepthPyramid pyramid;
-  buildPyramid(clipped_depth_m, intrinsics, config, &pyramid);
+  buildPyramid(clipped_depth_m, intrinsics, config, &pyramid, finest_sample_stride_px);
   return pyramid;
 }
 

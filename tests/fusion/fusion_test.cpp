@@ -9,6 +9,7 @@
 #include <map>
 #include <optional>
 #include <set>
+#include <stdexcept>
 #include <tuple>
 #include <vector>
 
@@ -370,6 +371,71 @@ TEST(Icp, RecoversAKnownMotion) {
     EXPECT_GT(r.inlier_fraction, 0.7f);
     EXPECT_LT(r.rmse_m, 2e-3f);
   }
+}
+
+TEST(Preprocess, SampledFinestLevelHoldsTheFullLevelsValuesAtItsPixels) {
+  TrackingFixture f;
+  const cv::Mat depth =
+      clipDepth(renderDepth(cornerWithBall(), f.in, smallMotion()), f.config.preprocess);
+  const DepthPyramid full = buildPyramid(depth, f.in, f.config.preprocess);
+  for (int stride : {2, 3}) {
+    const DepthPyramid sampled = buildPyramid(depth, f.in, f.config.preprocess, stride);
+    ASSERT_EQ(sampled.levels.size(), full.levels.size());
+    const DepthLevel& a = full.levels[0];
+    const DepthLevel& b = sampled.levels[0];
+    EXPECT_EQ(a.sample_stride_px, 1);
+    ASSERT_EQ(b.sample_stride_px, stride);
+    const int cols = (f.in.width_px + stride - 1) / stride;
+    const int rows = (f.in.height_px + stride - 1) / stride;
+    ASSERT_EQ(b.vertices_C.size(), static_cast<std::size_t>(cols) * rows);
+    ASSERT_EQ(b.normals_C.size(), b.vertices_C.size());
+    int normals = 0;
+    for (int i = 0; i < rows; ++i) {
+      for (int j = 0; j < cols; ++j) {
+        const std::size_t from = static_cast<std::size_t>(i * stride) * f.in.width_px + j * stride;
+        const std::size_t to = static_cast<std::size_t>(i) * cols + j;
+        // The same arithmetic: equal bit for bit, NaN where the full level has NaN.
+        for (int c = 0; c < 3; ++c) {
+          EXPECT_EQ(std::isnan(a.vertices_C[from][c]), std::isnan(b.vertices_C[to][c]));
+          EXPECT_EQ(std::isnan(a.normals_C[from][c]), std::isnan(b.normals_C[to][c]));
+        }
+        if (a.vertices_C[from].allFinite()) {
+          EXPECT_EQ(a.vertices_C[from], b.vertices_C[to]);
+        }
+        if (a.normals_C[from].allFinite()) {
+          EXPECT_EQ(a.normals_C[from], b.normals_C[to]);
+          ++normals;
+        }
+      }
+    }
+    EXPECT_GT(normals, rows * cols / 2);  // the scene fills the view
+    // The coarser levels do not depend on the sampling.
+    for (std::size_t l = 1; l < full.levels.size(); ++l) {
+      EXPECT_EQ(sampled.levels[l].sample_stride_px, 1);
+      EXPECT_EQ(cv::norm(sampled.levels[l].depth_m, full.levels[l].depth_m, cv::NORM_INF), 0.0);
+    }
+  }
+}
+
+TEST(Icp, SampledFinestLevelTracksAsTheFullOne) {
+  TrackingFixture f;
+  const cv::Mat depth =
+      clipDepth(renderDepth(cornerWithBall(), f.in, smallMotion()), f.config.preprocess);
+  const int stride = f.config.tracking.finest_level_stride;
+  ASSERT_GT(stride, 1);
+  const TrackingResult full = trackFrame(buildPyramid(depth, f.in, f.config.preprocess), f.model,
+                                         Pose::Identity(), f.config.tracking);
+  const TrackingResult sampled = trackFrame(buildPyramid(depth, f.in, f.config.preprocess, stride),
+                                            f.model, Pose::Identity(), f.config.tracking);
+  ASSERT_TRUE(full.ok && sampled.ok);
+  // The same pairs in the same order; only TBB's split of the sums may differ (float rounding).
+  EXPECT_EQ(sampled.inliers, full.inliers);
+  EXPECT_EQ(sampled.iterations, full.iterations);
+  EXPECT_LT((sampled.T_W_C.matrix() - full.T_W_C.matrix()).cwiseAbs().maxCoeff(), 1e-5f);
+  // A pyramid sampled more sparsely than tracking reads cannot be tracked.
+  EXPECT_THROW(trackFrame(buildPyramid(depth, f.in, f.config.preprocess, stride + 1), f.model,
+                          Pose::Identity(), f.config.tracking),
+               std::invalid_argument);
 }
 
 TEST(Icp, ReportsLossWhenTheFrameShowsSomethingElse) {

@@ -32,8 +32,11 @@ struct PreprocessConfig {
 /// One pyramid level, in the camera frame C. Pixels are row-major; an invalid pixel has depth 0
 /// and NaN vertex and normal.
 struct DepthLevel {
-  Intrinsics intrinsics;                    ///< scaled to this level's size
-  cv::Mat depth_m;                          ///< CV_32FC1
+  Intrinsics intrinsics;  ///< scaled to this level's size
+  cv::Mat depth_m;        ///< CV_32FC1
+  /// The vertex and normal maps hold every n-th pixel of every n-th row of depth_m only:
+  /// ceil(cols / n) x ceil(rows / n) samples, sample (i, j) being pixel (n i, n j). 1 = all.
+  int sample_stride_px = 1;
   std::vector<Eigen::Vector3f> vertices_C;  ///< back-projected depth
   std::vector<Eigen::Vector3f> normals_C;   ///< unit, facing the camera
 };
@@ -52,13 +55,17 @@ void clipDepth(const cv::Mat& depth_m, const PreprocessConfig& config, cv::Mat* 
 /// The tracking pyramid of a clipped depth image: bilateral filter at level 0, then each level
 /// averages the 2x2 pixels of the one below that lie within 3 sigma_depth of the nearest of them.
 /// Intrinsics of level l: focal lengths / 2^l, principal point (c + 0.5) / 2^l - 0.5.
+/// `finest_sample_stride_px` > 1 computes level 0's vertices and normals only at every n-th pixel
+/// of every n-th row (DepthLevel::sample_stride_px), those that tracking's finest level reads
+/// (TrackingConfig::finest_level_stride): the same values there, in a quarter of the time at 2.
 DepthPyramid buildPyramid(const cv::Mat& clipped_depth_m, const Intrinsics& intrinsics,
-                          const PreprocessConfig& config);
+                          const PreprocessConfig& config, int finest_sample_stride_px = 1);
 
 /// The same into `pyramid`, reusing its images and maps: at 640x480 a pyramid is 10 MB, and
 /// allocating it afresh every frame costs page faults.
 void buildPyramid(const cv::Mat& clipped_depth_m, const Intrinsics& intrinsics,
-                  const PreprocessConfig& config, DepthPyramid* pyramid);
+                  const PreprocessConfig& config, DepthPyramid* pyramid,
+                  int finest_sample_stride_px = 1);
 
 /// Intrinsics of a pyramid level (see buildPyramid).
 Intrinsics levelIntrinsics(const Intrinsics& full, int level);
