@@ -98,6 +98,25 @@ struct Answer {
   return at == std::string::npos ? 0 : std::stoul(out.substr(at + 15));
 }
 
+/// The state a served run's page ends with: waits for the run to print its address and then
+/// that it shows the results, and asks for the state; null (the test failed) when either line
+/// did not come or the state could not be had. `port` receives the port.
+[[maybe_unused]] nlohmann::json finalState(BackgroundProcess& run, int* port) {
+  *port = portOf(run.waitForLine("live page", 60));
+  if (*port <= 0) {
+    ADD_FAILURE() << "no address printed\n" << run.out() << run.err();
+    return nullptr;
+  }
+  if (run.waitForLine("live page     http://127.0.0.1:" + std::to_string(*port) + "/ shows", 300)
+          .empty()) {
+    ADD_FAILURE() << "the run did not end\n" << run.out() << run.err();
+    return nullptr;
+  }
+  const Answer state = get(*port, "/api/state?after=0");
+  EXPECT_EQ(state.status, 200);
+  return state.status == 200 ? nlohmann::json::parse(state.body) : nlohmann::json();
+}
+
 /// A scan of `frames` frames of `source` into `out`, serving on a free port, and kept serving
 /// afterwards until Ctrl-C.
 std::vector<std::string> servedScan(const std::string& source, const fs::path& out, int frames) {
@@ -315,15 +334,9 @@ TEST(LiveServer, ASourceNamedInLatin1IsServed) {
             0);
   BackgroundProcess fuse({OBJSCAN_EXE, "fuse", folder.string(), "--out", (dir / "f").string(),
                           "--serve", "0", "--serve-wait", "30", "--no-live-discovery"});
-  const int port = portOf(fuse.waitForLine("live page", 60));
-  ASSERT_GT(port, 0) << fuse.out() << fuse.err();
-  ASSERT_NE(fuse.waitForLine("live page     http://127.0.0.1:" + std::to_string(port) + "/ shows",
-                             300),
-            "")
-      << fuse.err();
-  const Answer state = get(port, "/api/state?after=0");
-  ASSERT_EQ(state.status, 200);
-  const nlohmann::json j = nlohmann::json::parse(state.body);
+  int port = 0;
+  const nlohmann::json j = finalState(fuse, &port);
+  ASSERT_FALSE(j.is_null());
   EXPECT_NE(j["source"].get<std::string>().find("desk\xef\xbf\xbd"), std::string::npos);
   EXPECT_EQ(j["final"]["outcome"], "finished");
   // settings.json names the source too, the same way.
@@ -354,15 +367,9 @@ TEST(LiveServer, FuseServesTheFinalState) {
   TempDir dir;
   BackgroundProcess fuse({OBJSCAN_EXE, "fuse", "synth:3", "--end", "20", "--out",
                           (dir / "f").string(), "--serve", "0", "--no-live-discovery"});
-  const int port = portOf(fuse.waitForLine("live page", 60));
-  ASSERT_GT(port, 0) << fuse.out() << fuse.err();
-  ASSERT_NE(fuse.waitForLine("live page     http://127.0.0.1:" + std::to_string(port) + "/ shows",
-                             300),
-            "")
-      << fuse.err();
-  const Answer state = get(port, "/api/state?after=0");
-  ASSERT_EQ(state.status, 200);
-  const nlohmann::json j = nlohmann::json::parse(state.body);
+  int port = 0;
+  const nlohmann::json j = finalState(fuse, &port);
+  ASSERT_FALSE(j.is_null());
   EXPECT_EQ(j["command"], "fuse");
   EXPECT_EQ(j["frames"]["fused"], 20);
   EXPECT_EQ(j["final"]["outcome"], "finished");
