@@ -63,13 +63,14 @@ void LiveRun::finish(LiveFinal final, bool keep_serving) {
     }
     return;
   }
+  // A Ctrl-C after the capture ended (on a sensor, the first one ends capture and is cleared)
+  // but before the results were shown asks to end: no waiting.
+  if (StopSignals::stopRequested()) return;
   char how_long[64] = "until Ctrl-C";
   if (options_.wait_s) std::snprintf(how_long, sizeof how_long, "for %g s", *options_.wait_s);
   std::printf("live page     %s shows the results %s\n", server_.url().c_str(), how_long);
   std::fflush(stdout);
-  // A Ctrl-C of its own: an earlier one (the end of a live capture) must not end this at once.
-  StopSignals signals;
-  StopSignals::clear();
+  StopSignals signals;  // its own handlers: fuse's are gone by now
   const auto start = SteadyClock::now();
   while (!StopSignals::stopRequested() &&
          (!options_.wait_s || secondsSince(start) < *options_.wait_s)) {
