@@ -26,7 +26,7 @@ using Clock = std::chrono::steady_clock;
 using Json = nlohmann::json;
 
 /// Blocks of the volume copied per frame for the worker: 1024 blocks of 8^3 voxels are about
-/// 6 MB, about a millisecond of copying, so a 30 Hz loop never waits long for it, and a volume of
+/// 4 MB (4-byte voxels and their colour), about a millisecond of copying, so a 30 Hz loop never waits long for it, and a volume of
 /// 30,000 blocks is copied in a second.
 constexpr std::size_t kCopyBlocksPerFrame = 1024;
 /// Hypotheses are painted on the model picture by the 1 cm cell their vertices fall in.
