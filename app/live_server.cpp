@@ -154,9 +154,14 @@ struct LiveServer::Impl {
       return route(conn);
     } catch (const std::exception &e) {
       log::debug(std::string("live page server: ") + e.what());
-      replyError(conn, 500, "internal error", false);
-      return 500;
+    } catch (...) {
+      log::debug("live page server: an unknown error");
     }
+    try {
+      replyError(conn, 500, "internal error", false);
+    } catch (...) {  // out of memory for the reply: the connection is closed without one
+    }
+    return 500;
   }
 
   int route(mg_connection *conn) {
