@@ -49,8 +49,8 @@ std::uint64_t cellKey(const Eigen::Vector3f& p) {
   return (part(p.x()) << 42) | (part(p.y()) << 21) | part(p.z());
 }
 
-std::string rankColor(int rank) {
-  const auto& c = kRankPalette[static_cast<std::size_t>(rank - 1) % kRankPalette.size()];
+std::string rankColorText(int rank) {
+  const auto& c = rankColour(static_cast<std::size_t>(rank));
   char text[8];
   std::snprintf(text, sizeof text, "#%02x%02x%02x", c[0], c[1], c[2]);
   return text;
@@ -77,7 +77,7 @@ Json hypothesesJson(const std::vector<LiveHypothesis>& list) {
                    {"vertices", h.vertices},
                    {"centroid_m", vectorJson(h.centroid)},
                    {"extents_m", vectorJson(h.extents)},
-                   {"color", rankColor(h.rank)}});
+                   {"color", rankColorText(h.rank)}});
   }
   return out;
 }
@@ -481,8 +481,7 @@ std::string LiveSession::modelJpeg() {
       if (objects && !objects->paint.empty()) {
         const auto it = objects->paint.find(cellKey(v));
         if (it != objects->paint.end()) {
-          const auto& c = kRankPalette[static_cast<std::size_t>(it->second - 1) %
-                                       kRankPalette.size()];
+          const auto& c = rankColour(static_cast<std::size_t>(it->second));
           r = c[0];
           g = c[1];
           b = c[2];

@@ -27,13 +27,8 @@ constexpr int kProbeWidth = 160, kProbeHeight = 120;
 const cv::Vec3b kBackgroundBgr(250, 248, 246);
 const cv::Vec3b kOutlineBgr(40, 40, 40);
 
-/// Rank `rank`'s colour (1-based); ranks past the palette's ten reuse it in order.
-std::array<std::uint8_t, 3> rankColor(std::size_t rank) {
-  return kRankPalette[(rank == 0 ? 0 : rank - 1) % kRankPalette.size()];
-}
-
 cv::Scalar bgrOf(std::size_t rank) {
-  const auto c = rankColor(rank);
+  const auto c = rankColour(rank);
   return {static_cast<double>(c[2]), static_cast<double>(c[1]), static_cast<double>(c[0])};
 }
 
@@ -370,7 +365,7 @@ SnapshotRenderer::SnapshotRenderer(const TriangleMesh& scene,
   for (std::size_t i : order) {
     const PaintedHypothesis& h = hypotheses[i];
     if (h.rank == 0) throw std::invalid_argument("snapshot: hypothesis ranks start at 1");
-    const auto c = rankColor(h.rank);
+    const auto c = rankColour(h.rank);
     for (std::int32_t v : h.vertices) {
       if (v < 0 || static_cast<std::size_t>(v) >= n) {
         throw std::invalid_argument("snapshot: hypothesis " + std::to_string(h.rank) +

@@ -11,16 +11,11 @@
 #include <stdexcept>
 #include <thread>
 
+#include "objscan/core/clock.h"
+
 extern char** environ;
 
 namespace objscan::testing {
-
-namespace {
-using Clock = std::chrono::steady_clock;
-double secondsSince(Clock::time_point t) {
-  return std::chrono::duration<double>(Clock::now() - t).count();
-}
-}  // namespace
 
 BackgroundProcess::BackgroundProcess(const std::vector<std::string>& argv) {
   int out_pipe[2];
@@ -63,7 +58,7 @@ bool BackgroundProcess::readSome(int timeout_ms) {
 }
 
 std::string BackgroundProcess::waitForLine(const std::string& prefix, double timeout_s) {
-  const auto start = Clock::now();
+  const auto start = SteadyClock::now();
   for (;;) {
     std::size_t at = 0;
     while (at < out_.size()) {
@@ -89,7 +84,7 @@ bool BackgroundProcess::running() {
 }
 
 int BackgroundProcess::wait(double timeout_s) {
-  const auto start = Clock::now();
+  const auto start = SteadyClock::now();
   while (running()) {
     if (secondsSince(start) > timeout_s) {
       ::kill(pid_, SIGKILL);

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
 
 namespace objscan {
@@ -22,5 +23,10 @@ inline constexpr std::array<std::array<std::uint8_t, 3>, 10> kRankPalette = {{
     {0, 128, 128},   // 9 teal
     {170, 110, 40},  // 10 brown
 }};
+
+/// Rank `rank`'s colour (1-based; 0 reads as 1); ranks past the palette's ten reuse it in order.
+inline const std::array<std::uint8_t, 3>& rankColour(std::size_t rank) {
+  return kRankPalette[(rank == 0 ? 0 : rank - 1) % kRankPalette.size()];
+}
 
 }  // namespace objscan
