@@ -23,5 +23,6 @@ Command addEvalCommand(CLI::App& app);
 Command addTrainCommand(CLI::App& app);
 Command addRenderCommand(CLI::App& app);
 Command addScanCommand(CLI::App& app);
+Command addViewCommand(CLI::App& app);
 
 }  // namespace objscan::app

@@ -3,26 +3,11 @@
 #include <memory>
 #include <string>
 
+#include "http_server.h"
 #include "live_session.h"
 
-/// The HTTP server behind `--serve`: civetweb (Debian's libcivetweb), a small, long-maintained C
-/// library whose worker threads, connection queue, request size cap and connection timeout are
-/// run-time options, which is what keeps many, slow or huge requests away from the scan; a shared
-/// library, so Debian's security fixes reach objscan without a rebuild (cpp-httplib is
-/// header-only; Boost.Beast is a toolkit, not a server). docs/live.md has the choice in full.
-/// civetweb stays inside live_server.cpp.
+/// The live page's routes (`--serve` on scan and fuse), on http_server.h's server.
 namespace objscan::app {
-
-/// Where `--serve [ADDR:]PORT` listens. The address is 127.0.0.1 unless one is given; port 0
-/// takes any free port.
-struct ServeAddress {
-  std::string host = "127.0.0.1";
-  int port = 0;
-};
-
-/// Parses "[ADDR:]PORT" (an IPv4 address or "localhost", and a port 0 to 65535). Throws
-/// std::invalid_argument naming the text and what is wrong.
-ServeAddress parseServeAddress(const std::string& text);
 
 /// Serves the live page for `session` until destroyed. Routes (GET and HEAD only):
 ///   /                 the page
@@ -31,24 +16,23 @@ ServeAddress parseServeAddress(const std::string& text);
 ///   /api/color.jpg    the current colour frame
 ///   /results/NAME     a file of the results folder, read-only (no folder listings, no hidden
 ///                     files, nothing outside it)
-/// Everything else is 404 (405 for other methods); a request over 16 kB is refused by civetweb.
+/// Everything else is 404 (405 for other methods); HttpServer's checks apply to all.
 class LiveServer {
  public:
   /// Starts listening. Throws std::invalid_argument (exit 2) when it cannot: the port is in use
   /// or not permitted, or the address is not this machine's.
   LiveServer(LiveSession& session, const ServeAddress& address);
-  ~LiveServer();  ///< stops serving: open requests end, and no new one is taken
   LiveServer(const LiveServer&) = delete;
   LiveServer& operator=(const LiveServer&) = delete;
 
   /// http://HOST:PORT/ with the port actually bound.
-  const std::string& url() const { return url_; }
-
-  struct Impl;
+  const std::string& url() const { return server_.url(); }
 
  private:
-  std::unique_ptr<Impl> impl_;
-  std::string url_;
+  HttpReply route(const HttpRequest& request);
+
+  LiveSession& session_;
+  HttpServer server_;  ///< last: it stops before the session it serves is gone
 };
 
 }  // namespace objscan::app

@@ -64,7 +64,7 @@ int run(int argc, char** argv) {
   const std::vector<Command> commands = {
       addInfoCommand(app),   addSynthCommand(app),    addDevicesCommand(app), addRecordCommand(app),
       addFuseCommand(app),   addDiscoverCommand(app), addEvalCommand(app),    addTrainCommand(app),
-      addRenderCommand(app), addScanCommand(app)};
+      addRenderCommand(app), addScanCommand(app),    addViewCommand(app)};
 
   // "objscan help [COMMAND]" is "objscan [COMMAND] --help", as git and cargo have it.
   std::vector<std::string> args(argv + 1, argv + argc);

@@ -20,62 +20,21 @@ namespace {
 
 namespace fs = std::filesystem;
 
-/// The places the scene mesh hypotheses.json was made from may be, in order: the folder's own
-/// mesh.ply (scan writes it there), the path discover noted relative to the folder, its absolute
-/// path (the folder moved without its scene), and (a folder from before paths were relative) the
-/// path as it was given, from the working directory.
-std::vector<fs::path> sceneMeshPlaces(const fs::path& dir, const report::SceneRecord& scene) {
-  std::vector<fs::path> places = {dir / report::kMeshFile};
-  const fs::path noted(scene.mesh);
-  places.push_back(noted.is_relative() ? dir / noted : noted);
-  if (!scene.mesh_absolute.empty()) {
-    places.emplace_back(scene.mesh_absolute);
-  } else if (noted.is_relative()) {
-    places.push_back(noted);
-  }
-  return places;
-}
-
-/// The folder's results with the scene mesh the hypotheses were cut from: the first of
-/// sceneMeshPlaces() that exists and has the vertex count hypotheses.json noted.
+/// The folder's results with the scene mesh the hypotheses were cut from (the first scene's).
 report::ScanResults readForRendering(const fs::path& dir) {
   // Not the old pictures: they are being replaced, and a damaged one must not stop that.
   report::ResultsParts parts;
   parts.pictures = false;
   report::ScanResults results = report::readResults(dir, parts);
-  const fs::path file = dir / report::kHypothesesFile;
   const std::vector<report::SceneRecord>& scenes = results.hypotheses->scenes;
-  if (scenes.empty()) throw InputError(file, "lists no scene");
-  const std::vector<fs::path> places = sceneMeshPlaces(dir, scenes[0]);
-  std::optional<InputError> mismatch;
-  std::error_code ec;
-  for (const fs::path& place : places) {
-    if (!fs::is_regular_file(place, ec)) continue;
-    TriangleMesh mesh = readPly(place);
-    if (scenes[0].vertices && mesh.positions.size() == *scenes[0].vertices) {
-      results.mesh = std::move(mesh);
-      if (scenes.size() > 1) {
-        log::warning("hypotheses.json holds " + std::to_string(scenes.size()) +
-                     " scenes; rendering the first, " + place.string());
-      }
-      return results;
-    }
-    if (!mismatch) {
-      mismatch.emplace(place, "has " + std::to_string(mesh.positions.size()) +
-                                  " vertices, but hypotheses.json was made from a mesh of " +
-                                  (scenes[0].vertices ? std::to_string(*scenes[0].vertices)
-                                                      : std::string("unknown size")) +
-                                  " (run discover again)");
-    }
+  if (scenes.empty()) throw InputError(dir / report::kHypothesesFile, "lists no scene");
+  fs::path place;
+  results.mesh = report::readSceneMesh(dir, scenes[0], &place);
+  if (scenes.size() > 1) {
+    log::warning("hypotheses.json holds " + std::to_string(scenes.size()) +
+                 " scenes; rendering the first, " + place.string());
   }
-  if (mismatch) throw *mismatch;
-  std::string list;
-  for (std::size_t i = 1; i < places.size(); ++i)
-    list += (i > 1 ? " or " : "") + places[i].string();
-  throw InputError(dir / report::kMeshFile,
-                   "missing: render needs the scene mesh hypotheses.json was made from (mesh.ply "
-                   "in the results folder, or " +
-                       list + ")");
+  return results;
 }
 
 /// Renders the pictures of the folder's first scene (its mesh, trajectory and hypotheses) and

@@ -182,6 +182,7 @@ Hypotheses hypothesesFrom(const discovery::SceneDiscovery& run, const std::strin
     r.candidates = scene.candidates.segments.size();
     r.hypotheses = scene.hypotheses;
     r.from_catalog = scene.from_catalog;
+    if (run.catalog) r.catalog_scene = scene.scene_id;
     if (!scene.from_catalog) {
       const discovery::DiscoveryTimings& t = scene.candidates.timings;
       r.findings =
@@ -243,6 +244,7 @@ void writeHypotheses(const fs::path& file, const Hypotheses& hyp) {
   for (const SceneRecord& s : hyp.scenes) {
     Json j = {{"mesh", s.mesh}, {"from_catalog", s.from_catalog}};
     if (!s.mesh_absolute.empty()) j["mesh_absolute"] = s.mesh_absolute;
+    if (s.catalog_scene) j["catalog_scene"] = *s.catalog_scene;
     if (s.vertices) j["vertices"] = *s.vertices;
     if (s.faces) j["faces"] = *s.faces;
     if (s.candidates) j["candidates"] = *s.candidates;
@@ -307,6 +309,9 @@ Hypotheses readHypotheses(const fs::path& file) {
     r.candidates = s.count("candidates");
     r.hypotheses = s.count("hypotheses");
     r.from_catalog = s.boolean("from_catalog").value_or(false);
+    if (const Json* id = s.get("catalog_scene"); id && id->is_number_integer()) {
+      r.catalog_scene = id->get<std::int64_t>();
+    }
     if (const std::optional<Node> t = s.object("timings_ms")) {
       r.findings =
           SceneFindings{s.number("median_edge_m").value_or(NAN),
@@ -731,6 +736,51 @@ ScanResults readResults(const fs::path& dir, const ResultsParts& parts) {
   }
   r.pictures = readPictures(dir, ranks);
   return r;
+}
+
+}  // namespace objscan::report
+
+namespace objscan::report {
+
+std::vector<fs::path> sceneMeshPlaces(const fs::path& dir, const SceneRecord& scene) {
+  std::vector<fs::path> places = {dir / kMeshFile};
+  const fs::path noted(scene.mesh);
+  places.push_back(noted.is_relative() ? dir / noted : noted);
+  if (!scene.mesh_absolute.empty()) {
+    places.emplace_back(scene.mesh_absolute);
+  } else if (noted.is_relative()) {
+    places.push_back(noted);
+  }
+  return places;
+}
+
+TriangleMesh readSceneMesh(const fs::path& dir, const SceneRecord& scene, fs::path* found) {
+  const std::vector<fs::path> places = sceneMeshPlaces(dir, scene);
+  std::optional<InputError> mismatch;
+  std::error_code ec;
+  for (const fs::path& place : places) {
+    if (!fs::is_regular_file(place, ec)) continue;
+    TriangleMesh mesh = readPly(place);
+    if (scene.vertices && mesh.positions.size() == *scene.vertices) {
+      if (found) *found = place;
+      return mesh;
+    }
+    if (!mismatch) {
+      mismatch.emplace(place, "has " + std::to_string(mesh.positions.size()) +
+                                  " vertices, but hypotheses.json was made from a mesh of " +
+                                  (scene.vertices ? std::to_string(*scene.vertices)
+                                                  : std::string("unknown size")) +
+                                  " (run discover again)");
+    }
+  }
+  if (mismatch) throw *mismatch;
+  std::string list;
+  for (std::size_t i = 1; i < places.size(); ++i)
+    list += (i > 1 ? " or " : "") + places[i].string();
+  throw InputError(dir / kMeshFile,
+                   "missing: the scene mesh hypotheses.json was made from (mesh.ply in the "
+                   "results folder, or " +
+                       list + ")");
 }
 
 }  // namespace objscan::report

@@ -64,6 +64,9 @@ struct SceneRecord {
   std::string mesh_absolute;  ///< the same file's absolute path; empty when it names no file
   std::optional<std::size_t> vertices, faces, candidates, hypotheses;
   bool from_catalog = false;
+  /// The scene's id in the catalog the run used (CatalogUse::path); nothing without a catalog, or
+  /// in a file from before it was written.
+  std::optional<std::int64_t> catalog_scene;
   std::optional<SceneFindings> findings;  ///< absent when the catalog supplied the candidates
 };
 

@@ -97,6 +97,19 @@ struct ResultsParts {
   std::size_t max_closeups = 50;
 };
 
+/// The places the mesh of `scene` (a scene of DIR/hypotheses.json) may be, in order: the folder's
+/// own mesh.ply (scan writes it there), the path discover noted relative to the folder, its
+/// absolute path (the folder moved without its scene), and (a folder from before paths were
+/// relative) the path as it was given, from the working directory.
+std::vector<std::filesystem::path> sceneMeshPlaces(const std::filesystem::path& dir,
+                                                   const SceneRecord& scene);
+
+/// The mesh `scene` was cut from: the first of sceneMeshPlaces() that exists and has the vertex
+/// count hypotheses.json noted (its path into `found`). Throws InputError naming the file when
+/// none is there, one has another vertex count (the scene changed since), or it is damaged.
+TriangleMesh readSceneMesh(const std::filesystem::path& dir, const SceneRecord& scene,
+                           std::filesystem::path* found = nullptr);
+
 /// What a results folder holds: hypotheses.json (required) and every other file present, read by
 /// its reader.
 ScanResults readResults(const std::filesystem::path& dir, const ResultsParts& parts = {});

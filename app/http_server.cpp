@@ -1,0 +1,314 @@
+#include "http_server.h"
+
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <charconv>
+#include <cstdlib>
+#include <cstring>
+#include <optional>
+#include <stdexcept>
+#include <string_view>
+#include <system_error>
+#include <utility>
+
+#include <civetweb.h>
+
+#include "objscan/core/log.h"
+
+namespace objscan::app {
+namespace {
+
+namespace fs = std::filesystem;
+
+bool parsePort(std::string_view text, int* port) {
+  if (text.empty() || text.size() > 5) return false;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), *port);
+  return ec == std::errc() && end == text.data() + text.size() && *port >= 0 && *port <= 65535;
+}
+
+bool isIpv4(std::string_view host) {
+  int parts = 0;
+  std::size_t at = 0;
+  while (at <= host.size()) {
+    const std::size_t dot = std::min(host.find('.', at), host.size());
+    const std::string_view part = host.substr(at, dot - at);
+    int value = 0;
+    const auto [end, ec] = std::from_chars(part.data(), part.data() + part.size(), value);
+    if (part.empty() || part.size() > 3 || ec != std::errc() || end != part.data() + part.size() ||
+        value > 255) {
+      return false;
+    }
+    ++parts;
+    at = dot + 1;
+  }
+  return parts == 4;
+}
+
+void* lowerThreadPriority(const mg_context*, int) {
+  setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), 10);
+  return nullptr;
+}
+
+/// civetweb's own messages (a client gone mid-reply, a refused oversized request) are about one
+/// client, not the work: kept out of the terminal unless --verbose.
+int logMessage(const mg_connection*, const char* message) {
+  log::debug(std::string("server: ") + message);
+  return 1;
+}
+
+void send(mg_connection* conn, const HttpReply& r, bool head) {
+  if (!r.file.empty()) {
+    mg_send_mime_file2(conn, r.file.c_str(), nullptr, "X-Content-Type-Options: nosniff\r\n");
+    return;
+  }
+  mg_response_header_start(conn, r.status);
+  mg_response_header_add(conn, "Content-Type", r.type.c_str(), -1);
+  mg_response_header_add(conn, "Cache-Control", "no-store", -1);
+  mg_response_header_add(conn, "X-Content-Type-Options", "nosniff", -1);
+  mg_response_header_add(conn, "Content-Length", std::to_string(r.body.size()).c_str(), -1);
+  mg_response_header_send(conn);
+  if (!head && !r.body.empty()) mg_write(conn, r.body.data(), r.body.size());
+}
+
+}  // namespace
+
+HttpReply HttpReply::text(int status, std::string text) {
+  HttpReply r;
+  r.status = status;
+  r.body = std::move(text);
+  r.body += '\n';
+  return r;
+}
+
+HttpReply HttpReply::json(std::string body, int status) {
+  HttpReply r;
+  r.status = status;
+  r.type = "application/json";
+  r.body = std::move(body);
+  return r;
+}
+
+HttpReply HttpReply::bytes(std::string type, std::string body) {
+  HttpReply r;
+  r.type = std::move(type);
+  r.body = std::move(body);
+  return r;
+}
+
+HttpReply HttpReply::sendFile(fs::path file) {
+  HttpReply r;
+  r.file = std::move(file);
+  return r;
+}
+
+struct HttpServer::Impl {
+  ServeAddress address;
+  Handler handler;
+  HttpServerOptions options;
+  mg_context* context = nullptr;
+  int port = 0;  ///< the port bound
+
+  /// Whether `host` (a Host header) names this server: the address it listens on, or localhost
+  /// on a loopback address, or, listening on every interface, an IPv4 address or this machine's
+  /// name; with the port bound. A page of another site that has made its own name point at
+  /// 127.0.0.1 (DNS rebinding) sends that name, and is refused.
+  bool ownHost(std::string_view host) const {
+    std::string_view name = host;
+    const std::size_t colon = host.rfind(':');
+    if (colon != std::string_view::npos) {
+      int given = -1;
+      if (!parsePort(host.substr(colon + 1), &given) || given != port) return false;
+      name = host.substr(0, colon);
+    } else if (port != 80) {
+      return false;
+    }
+    const auto same = [](std::string_view a, std::string_view b) {
+      return a.size() == b.size() && mg_strncasecmp(a.data(), b.data(), a.size()) == 0;
+    };
+    if (same(name, address.host)) return true;
+    const bool any = address.host == "0.0.0.0";
+    if (same(name, "localhost") && (any || address.host.rfind("127.", 0) == 0)) return true;
+    if (!any) return false;
+    if (isIpv4(name)) return true;
+    char own[256] = "";
+    return gethostname(own, sizeof own - 1) == 0 && same(name, own);
+  }
+
+  int handle(mg_connection* conn) {
+    // Nothing may leave a civetweb callback as an exception (it would end the whole program).
+    bool head = false;
+    try {
+      HttpReply r = route(conn, &head);
+      send(conn, r, head);
+      return r.status;
+    } catch (const std::exception& e) {
+      log::debug(std::string("server: ") + e.what());
+    } catch (...) {
+      log::debug("server: an unknown error");
+    }
+    try {
+      send(conn, HttpReply::text(500, "internal error"), head);
+    } catch (...) {  // out of memory for the reply: the connection is closed without one
+    }
+    return 500;
+  }
+
+  HttpReply route(mg_connection* conn, bool* head) {
+    const mg_request_info* info = mg_get_request_info(conn);
+    HttpRequest request;
+    request.method = info->request_method ? info->request_method : "";
+    *head = request.head();
+    const char* host = mg_get_header(conn, "Host");
+    if (host && !ownHost(host)) {
+      return HttpReply::text(403, "this server answers only to its own address");
+    }
+    const bool post = request.method == "POST" && options.max_body_bytes > 0;
+    if (request.method != "GET" && !*head && !post) {
+      return HttpReply::text(405, options.max_body_bytes > 0
+                                      ? "only GET, HEAD and POST are served here"
+                                      : "only GET and HEAD are served here");
+    }
+    // The decoded path as sent, not civetweb's cleaned one: a path that needs cleaning (dot
+    // segments) is refused by the routes rather than quietly turned into another.
+    request.path = info->local_uri_raw ? info->local_uri_raw : "";
+    request.query = info->query_string ? info->query_string : "";
+    if (post) {
+      if (std::optional<HttpReply> refused = readBody(conn, info, &request.body)) return *refused;
+    }
+    return handler(request);
+  }
+
+  /// Reads a POST's body into `body`, or the reply that refuses it.
+  std::optional<HttpReply> readBody(mg_connection* conn, const mg_request_info* info,
+                                    std::string* body) const {
+    const char* type = mg_get_header(conn, "Content-Type");
+    if (!type || mg_strncasecmp(type, "application/json", 16) != 0) {
+      return HttpReply::text(415, "a POST here carries Content-Type: application/json");
+    }
+    if (const char* origin = mg_get_header(conn, "Origin")) {
+      std::string_view o = origin;
+      constexpr std::string_view kHttp = "http://";
+      if (o.substr(0, kHttp.size()) != kHttp || !ownHost(o.substr(kHttp.size()))) {
+        return HttpReply::text(403, "a POST here must come from this server's own pages");
+      }
+    }
+    if (info->content_length < 0) return HttpReply::text(411, "a POST here gives its length");
+    if (static_cast<std::uint64_t>(info->content_length) > options.max_body_bytes) {
+      return HttpReply::text(413, "the body is larger than the " +
+                                      std::to_string(options.max_body_bytes) +
+                                      " bytes taken here");
+    }
+    body->resize(static_cast<std::size_t>(info->content_length));
+    std::size_t got = 0;
+    while (got < body->size()) {
+      const int n = mg_read(conn, body->data() + got, body->size() - got);
+      if (n <= 0) return HttpReply::text(400, "the body ended before its announced length");
+      got += static_cast<std::size_t>(n);
+    }
+    return std::nullopt;
+  }
+};
+
+ServeAddress parseServeAddress(const std::string& text, const std::string& flag) {
+  ServeAddress address;
+  const std::size_t colon = text.rfind(':');
+  const std::string port = colon == std::string::npos ? text : text.substr(colon + 1);
+  if (colon != std::string::npos) address.host = text.substr(0, colon);
+  if (address.host == "localhost") address.host = "127.0.0.1";
+  if (!parsePort(port, &address.port)) {
+    throw std::invalid_argument(flag + " '" + text + "': the port must be a number from 0 to " +
+                                "65535 (0: any free port), as PORT or ADDRESS:PORT");
+  }
+  if (!isIpv4(address.host)) {
+    throw std::invalid_argument(flag + " '" + text + "': '" + address.host +
+                                "' is not an IPv4 address (e.g. 127.0.0.1, or 0.0.0.0 for every " +
+                                "interface)");
+  }
+  return address;
+}
+
+HttpServer::HttpServer(const ServeAddress& address, Handler handler,
+                       const HttpServerOptions& options)
+    : impl_(new Impl{address, std::move(handler), options}) {
+  mg_init_library(0);
+  const std::string listening = address.host + ":" + std::to_string(address.port);
+  // A few threads: a page needs two or three connections, and a request beyond them waits in
+  // the queue; a connection that sends nothing is dropped after 5 s, and a request over 16 kB
+  // (headers included) is refused, so neither many nor slow nor huge requests tie the server up.
+  const char* civetweb_options[] = {"listening_ports",
+                                    listening.c_str(),
+                                    "num_threads",
+                                    "8",
+                                    "connection_queue",
+                                    "64",
+                                    "request_timeout_ms",
+                                    "5000",
+                                    "max_request_size",
+                                    "16384",
+                                    "enable_keep_alive",
+                                    "no",
+                                    "enable_directory_listing",
+                                    "no",
+                                    "access_control_allow_origin",
+                                    "",
+                                    "static_file_cache_control",
+                                    "no-store",
+                                    nullptr};
+  mg_callbacks callbacks{};
+  callbacks.begin_request = [](mg_connection* conn) -> int {
+    auto* impl = static_cast<Impl*>(mg_get_user_data(mg_get_context(conn)));
+    return impl->handle(conn);
+  };
+  if (options.lower_priority) callbacks.init_thread = lowerThreadPriority;
+  callbacks.log_message = logMessage;
+  char error_text[256] = "";
+  unsigned error_code = 0;
+  mg_error_data error{&error_code, error_text, sizeof error_text};
+  mg_init_data init{&callbacks, impl_.get(), civetweb_options};
+  impl_->context = mg_start2(&init, &error);
+  if (!impl_->context) {
+    mg_exit_library();
+    std::string why = error_text[0] ? error_text : "civetweb could not start";
+    throw std::invalid_argument(options.flag + " " + listening + ": cannot listen: " + why +
+                                " (is another program on that port? pick another, or 0 for any "
+                                "free port)");
+  }
+  mg_server_port ports[4];
+  const int n = mg_get_server_ports(impl_->context, 4, ports);
+  const int port = n > 0 ? ports[0].port : address.port;
+  impl_->port = port;
+  const std::string shown = address.host == "0.0.0.0" ? std::string("127.0.0.1") : address.host;
+  url_ = "http://" + shown + ":" + std::to_string(port) + "/";
+}
+
+HttpServer::~HttpServer() {
+  if (impl_->context) mg_stop(impl_->context);
+  mg_exit_library();
+}
+
+fs::path resultFile(const fs::path& folder, std::string_view relative) {
+  // civetweb decodes the path in place, so a %00 ends it: "a%00.txt" names "a", which these
+  // rules then judge.
+  if (relative.empty() || relative.size() > 1024) return {};
+  if (relative.find('\\') != std::string_view::npos) return {};
+  std::size_t at = 0;
+  while (at <= relative.size()) {
+    const std::size_t slash = std::min(relative.find('/', at), relative.size());
+    const std::string_view part = relative.substr(at, slash - at);
+    if (part.empty() || part.front() == '.') return {};
+    at = slash + 1;
+  }
+  std::error_code ec;
+  const fs::path root = fs::canonical(folder, ec);
+  if (ec) return {};
+  const fs::path file = fs::canonical(root / fs::path(std::string(relative)), ec);
+  if (ec || !fs::is_regular_file(file, ec)) return {};
+  const auto [end, ignored] = std::mismatch(root.begin(), root.end(), file.begin(), file.end());
+  if (end != root.end()) return {};
+  return file;
+}
+
+}  // namespace objscan::app

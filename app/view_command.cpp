@@ -1,0 +1,118 @@
+#include "view_command.h"
+
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <memory>
+#include <stdexcept>
+#include <thread>
+
+#include "exit_codes.h"
+#include "objscan/core/clock.h"
+#include "objscan/core/error.h"
+#include "objscan/core/log.h"
+#include "options.h"
+#include "stop_signals.h"
+#include "view_server.h"
+
+namespace objscan::app {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// The port view listens on when --serve is not given: one a user can bookmark.
+constexpr int kDefaultPort = 8090;
+
+std::string defaultLabeller() {
+  for (const char* name : {"OBJSCAN_LABELLER", "USER", "LOGNAME"}) {
+    if (const char* v = std::getenv(name); v && *v) return v;
+  }
+  return "unknown";
+}
+
+}  // namespace
+
+Command addViewCommand(CLI::App& app) {
+  auto options = std::make_shared<ViewCommandOptions>();
+  ViewCommandOptions& o = *options;
+  CLI::App* view = app.add_subcommand(
+      "view",
+      "Show a results folder in 3-D in a browser: turn it around, click objects, label segments "
+      "(object / not / unsure) into the catalog for objscan train");
+  view->footer(
+      "Keys in the page: y object, n not an object, u unsure, j / k next / previous, space next "
+      "unlabelled, z undo.\n"
+      "Example:\n  objscan view out/desk            (then open http://127.0.0.1:8090/)\n"
+      "  objscan view out/desk --serve 0  (any free port)");
+  view->add_option("dir", o.dir, "A results folder of objscan scan or discover (hypotheses.json)")
+      ->required();
+  view->add_option("--serve", o.address,
+                   "Listen at [ADDR:]PORT (ADDR defaults to 127.0.0.1; PORT 0 takes any free "
+                   "port; default 127.0.0.1:8090, or any free port when that is taken)");
+  view->add_option("--catalog", o.catalog,
+                   "Catalog the labels go to (default: the one the results were made with)");
+  view->add_option("--labeller", o.labeller,
+                   "Name stored with each label (default: $OBJSCAN_LABELLER, else $USER)");
+  view->add_option("--serve-wait", o.wait_s, "Stop serving after this many seconds (default: at Ctrl-C)")
+      ->check(CLI::NonNegativeNumber);
+  view->add_option("--preview-triangles", o.max_preview_triangles,
+                   "Show meshes with more triangles decimated to this many (default 1000000)")
+      ->check(CLI::Range(std::size_t{1000}, std::size_t{50'000'000}));
+  return {view, [options] { return runView(*options); }};
+}
+
+int runView(const ViewCommandOptions& options) {
+  std::error_code ec;
+  if (!fs::is_directory(options.dir, ec)) {
+    throw InputError(options.dir, "is not a folder: give a results folder of objscan scan or discover");
+  }
+  // The address first: a bad one is a usage error before any file is read.
+  std::optional<ServeAddress> address;
+  if (options.address) address = parseServeAddress(*options.address);
+
+  ViewSettings settings;
+  settings.dir = options.dir;
+  settings.catalog = options.catalog;
+  settings.labeller = options.labeller.empty() ? defaultLabeller() : options.labeller;
+  settings.max_preview_triangles = options.max_preview_triangles;
+  ViewData data(settings);
+
+  std::unique_ptr<ViewServer> server;
+  if (address) {
+    server = std::make_unique<ViewServer>(data, *address);
+    if (address->host.rfind("127.", 0) != 0) {
+      log::warning("--serve " + *options.address + ": the viewer and its labelling can be used " +
+                   "by anyone who reaches this machine on that port (there is no password)");
+    }
+  } else {
+    try {
+      server = std::make_unique<ViewServer>(data, ServeAddress{"127.0.0.1", kDefaultPort});
+    } catch (const std::invalid_argument&) {
+      server = std::make_unique<ViewServer>(data, ServeAddress{"127.0.0.1", 0});
+    }
+  }
+  std::size_t shown = 0;
+  for (const ViewScene& s : data.scenes()) shown += s.error.empty() ? 1 : 0;
+  std::printf("scenes        %zu (%zu can be shown), %zu hypotheses\n", data.scenes().size(), shown,
+              data.hypotheses().hypotheses.size());
+  if (data.labellingOff().empty()) {
+    std::printf("labels        into %s, as %s\n", data.catalogPath().c_str(),
+                settings.labeller.c_str());
+  }
+  char how_long[64] = "until Ctrl-C";
+  if (options.wait_s) std::snprintf(how_long, sizeof how_long, "for %g s", *options.wait_s);
+  std::printf("viewer        %s (serving %s)\n", server->url().c_str(), how_long);
+  std::fflush(stdout);
+  if (shown == 0) log::warning("no scene of " + options.dir.string() + " can be shown (see above)");
+
+  StopSignals signals;
+  const auto start = SteadyClock::now();
+  while (!StopSignals::stopRequested() && (!options.wait_s || secondsSince(start) < *options.wait_s)) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  return StopSignals::stopRequested() ? kExitSuccess : kExitSuccess;
+}
+
+}  // namespace objscan::app

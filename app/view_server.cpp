@@ -1,0 +1,478 @@
+#include "view_server.h"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <cstring>
+#include <map>
+#include <stdexcept>
+#include <string_view>
+#include <system_error>
+#include <utility>
+
+#include <civetweb.h>
+#include <nlohmann/json.hpp>
+
+#include "objscan/core/error.h"
+#include "objscan/core/log.h"
+#include "objscan/core/palette.h"
+#include "objscan/core/progress.h"
+#include "objscan/report/mesh_view.h"
+#include "objscan/report/results_io.h"
+#include "view_page.h"  // generated from view_page.html: kViewPage
+
+namespace objscan::app {
+namespace {
+
+namespace fs = std::filesystem;
+using Json = nlohmann::json;
+
+/// Labels as the page names them.
+constexpr std::array<const char*, 3> kLabelNames = {"not_object", "object", "unsure"};
+
+Json labelJson(const std::optional<int>& label) {
+  if (!label || *label < 0 || *label > 2) return nullptr;
+  return kLabelNames[static_cast<std::size_t>(*label)];
+}
+
+Json measuresJson(const discovery::ShapeMeasures& m) {
+  Json j = Json::object();
+  const auto values = discovery::measureValues(m);
+  for (std::size_t k = 0; k < values.size(); ++k) {
+    j[discovery::kMeasureNames[k]] = std::isfinite(values[k]) ? Json(values[k]) : Json(nullptr);
+  }
+  return j;
+}
+
+Json vectorJson(const Eigen::Vector3f& v) { return Json::array({v.x(), v.y(), v.z()}); }
+
+std::string dump(const Json& j) { return j.dump(-1, ' ', false, Json::error_handler_t::replace); }
+
+HttpReply jsonError(int status, const std::string& message) {
+  return HttpReply::json(dump(Json{{"error", message}}), status);
+}
+
+std::string u32Bytes(const std::vector<std::uint32_t>& values) {
+  std::string out;
+  out.reserve(values.size() * 4);
+  for (const std::uint32_t v : values) {
+    const char b[4] = {static_cast<char>(v & 0xff), static_cast<char>((v >> 8) & 0xff),
+                       static_cast<char>((v >> 16) & 0xff), static_cast<char>(v >> 24)};
+    out.append(b, 4);
+  }
+  return out;
+}
+
+/// A whole decimal number in `text` (no sign, no spaces), or nothing.
+std::optional<std::int64_t> wholeNumber(std::string_view text) {
+  std::int64_t value = 0;
+  if (text.empty() || text.size() > 18) return std::nullopt;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (ec != std::errc() || end != text.data() + text.size() || value < 0) return std::nullopt;
+  return value;
+}
+
+/// Who labels: the page's name when it gives a usable one (1 to 64 bytes, no control
+/// characters), else the server's.
+std::optional<std::string> labellerOf(const Json& body, const std::string& fallback) {
+  const auto it = body.find("by");
+  if (it == body.end() || it->is_null()) return fallback;
+  if (!it->is_string()) return std::nullopt;
+  const std::string by = it->get<std::string>();
+  if (by.empty()) return fallback;
+  if (by.size() > 64) return std::nullopt;
+  for (const unsigned char c : by) {
+    if (c < 0x20 || c == 0x7f) return std::nullopt;
+  }
+  return by;
+}
+
+Json eventJson(const discovery::LabelEvent& e) {
+  Json j = {{"event", e.id},          {"segment", e.segment_id},
+            {"label", labelJson(e.label)}, {"previous", labelJson(e.previous)},
+            {"by", e.by},             {"at", e.at}};
+  if (e.undoes) j["undoes"] = *e.undoes;
+  return j;
+}
+
+Json countsJson(const discovery::LabelCounts& c) {
+  return {{"segments", c.segments},       {"labelled", c.labelled}, {"objects", c.objects},
+          {"not_objects", c.not_objects}, {"unsure", c.unsure}};
+}
+
+}  // namespace
+
+// ---- ViewData ----------------------------------------------------------------------------------
+
+ViewData::ViewData(const ViewSettings& settings) : settings_(settings) {
+  hypotheses_ = report::readHypotheses(settings.dir / report::kHypothesesFile);
+  if (hypotheses_.scenes.empty()) {
+    throw InputError(settings.dir / report::kHypothesesFile, "lists no scene: nothing to show");
+  }
+  if (settings.catalog) {
+    catalog_path_ = *settings.catalog;
+  } else if (hypotheses_.catalog && !hypotheses_.catalog->path.empty()) {
+    catalog_path_ = hypotheses_.catalog->path;
+  }
+  std::error_code ec;
+  if (catalog_path_.empty()) {
+    labelling_off_ =
+        "the results were made without a catalog (--no-catalog): labels live in a catalog; run "
+        "discover with --catalog, or give view --catalog";
+  } else if (!fs::is_regular_file(catalog_path_, ec)) {
+    labelling_off_ = "the catalog " + catalog_path_.string() + " is missing";
+  } else {
+    try {
+      catalog_ = std::make_unique<discovery::Catalog>(catalog_path_);
+    } catch (const std::exception& e) {
+      labelling_off_ = e.what();
+    }
+  }
+  if (!labelling_off_.empty()) log::warning("labelling is off: " + labelling_off_);
+
+  scenes_.resize(hypotheses_.scenes.size());
+  ProgressBar progress("reading scenes", scenes_.size());
+  for (std::size_t i = 0; i < scenes_.size(); ++i) {
+    loadScene(i, scenes_[i]);
+    progress.advance();
+  }
+  progress.finish();
+}
+
+void ViewData::loadScene(std::size_t index, ViewScene& scene) {
+  const report::SceneRecord& record = hypotheses_.scenes[index];
+  scene.name = record.mesh;
+  fs::path mesh_file;
+  TriangleMesh mesh;
+  try {
+    mesh = report::readSceneMesh(settings_.dir, record, &mesh_file);
+    if (mesh.triangles.empty()) throw InputError(mesh_file, "has no triangles to show");
+    const report::ViewMesh view =
+        report::viewMesh(mesh, hypotheses_.hypotheses, record.mesh, settings_.max_preview_triangles);
+    scene.payload = report::meshViewPayload(view);
+    scene.vertices = mesh.positions.size();
+    scene.faces = mesh.triangles.size();
+    scene.preview_vertices = view.preview.mesh.positions.size();
+    scene.preview_faces = view.preview.mesh.triangles.size();
+    scene.vertex_map = view.preview.vertex_map;
+    for (const report::HypothesisRecord& h : hypotheses_.hypotheses) {
+      if (h.scene == record.mesh) {
+        scene.hypothesis_vertices.emplace_back(h.rank,
+                                               report::previewVertices(view.preview, h.vertices));
+      }
+    }
+  } catch (const std::exception& e) {
+    scene.error = e.what();
+    log::warning("scene " + record.mesh + " cannot be shown: " + scene.error);
+    return;
+  }
+  if (catalog_) findInCatalog(record, mesh_file, scene);
+}
+
+void ViewData::findInCatalog(const report::SceneRecord& record, const fs::path& mesh_file,
+                             ViewScene& scene) {
+  // The id hypotheses.json noted, when the catalog still holds that scene with this mesh's size;
+  // else the newest scene of this mesh's content (a folder written before ids were noted).
+  std::optional<std::int64_t> id;
+  try {
+    for (const discovery::CatalogScene& s : catalog_->scenes()) {
+      if (record.catalog_scene && s.id == *record.catalog_scene &&
+          s.vertex_count == scene.vertices) {
+        id = s.id;
+      }
+    }
+    if (!id) {
+      const std::vector<discovery::CatalogScene> same =
+          catalog_->scenesWithHash(discovery::contentHash(mesh_file));
+      for (const discovery::CatalogScene& s : same) {
+        if (s.vertex_count == scene.vertices) id = s.id;
+      }
+    }
+    if (!id) {
+      scene.label_error = "the catalog " + catalog_path_.string() + " does not hold this scene " +
+                          "(run discover on it with --catalog " + catalog_path_.string() + ")";
+      return;
+    }
+    // Hypotheses are candidates that survived suppression: the same vertex list.
+    std::map<std::vector<std::int32_t>, std::size_t> rank_of;
+    for (const report::HypothesisRecord& h : hypotheses_.hypotheses) {
+      if (h.scene == record.mesh && !h.vertices.empty()) rank_of.emplace(h.vertices, h.rank);
+    }
+    for (discovery::CatalogSegment& c : catalog_->segments(*id, true)) {
+      ViewScene::Segment s;
+      s.id = c.id;
+      s.scale = c.scale;
+      s.vertex_count = c.vertices.size();
+      s.measures = c.measures;
+      if (const auto it = rank_of.find(c.vertices); it != rank_of.end()) s.rank = it->second;
+      for (const std::int32_t v : c.vertices) {
+        if (v < 0 || static_cast<std::size_t>(v) >= scene.vertices) {
+          throw InputError(catalog_path_, "segment " + std::to_string(c.id) +
+                                              " names a vertex outside its scene");
+        }
+      }
+      DecimatedMesh map_only;
+      map_only.vertex_map = scene.vertex_map;  // previewVertices reads only the map
+      s.preview = report::previewVertices(map_only, c.vertices);
+      scene.segments.push_back(std::move(s));
+    }
+    std::stable_sort(scene.segments.begin(), scene.segments.end(),
+                     [](const ViewScene::Segment& a, const ViewScene::Segment& b) {
+                       const std::size_t ra = a.rank ? a.rank : SIZE_MAX;
+                       const std::size_t rb = b.rank ? b.rank : SIZE_MAX;
+                       return ra < rb;
+                     });
+    scene.catalog_scene = id;
+  } catch (const std::exception& e) {
+    scene.label_error = e.what();
+    scene.segments.clear();
+    log::warning("scene " + record.mesh + " cannot be labelled: " + scene.label_error);
+  }
+}
+
+// ---- ViewServer --------------------------------------------------------------------------------
+
+ViewServer::ViewServer(ViewData& data, const ServeAddress& address)
+    : data_(data),
+      server_(address, [this](const HttpRequest& request) { return route(request); },
+              HttpServerOptions{"--serve", 4096, false}) {}
+
+HttpReply ViewServer::route(const HttpRequest& request) {
+  const std::string_view path = request.path;
+  if (request.method == "POST") {
+    if (path == "/api/label") return label(request);
+    if (path == "/api/undo") return undo(request);
+    return jsonError(405, "POST is taken only by /api/label and /api/undo");
+  }
+  if (path == "/" || path == "/index.html") {
+    return HttpReply::bytes("text/html; charset=utf-8", std::string(kViewPage));
+  }
+  constexpr const char* kScript = "text/javascript; charset=utf-8";
+  if (path == "/assets/three.min.js") return HttpReply::bytes(kScript, std::string(report::threeJs()));
+  if (path == "/assets/OrbitControls.js") {
+    return HttpReply::bytes(kScript, std::string(report::orbitControlsJs()));
+  }
+  if (path == "/assets/mesh_view.js") {
+    return HttpReply::bytes(kScript, std::string(report::meshViewJs()));
+  }
+  if (path == "/api/results") {
+    const report::Hypotheses& h = data_.hypotheses();
+    Json scenes = Json::array();
+    std::map<std::string, std::size_t> scene_index;
+    for (std::size_t i = 0; i < data_.scenes().size(); ++i) {
+      const ViewScene& s = data_.scenes()[i];
+      scene_index.emplace(s.name, i);
+      Json j = {{"index", i},
+                {"name", s.name},
+                {"vertices", s.vertices},
+                {"faces", s.faces},
+                {"preview_vertices", s.preview_vertices},
+                {"preview_faces", s.preview_faces},
+                {"decimated", s.preview_faces < s.faces},
+                {"labelling", s.catalog_scene.has_value()}};
+      if (!s.error.empty()) j["error"] = s.error;
+      if (!s.label_error.empty()) j["label_error"] = s.label_error;
+      if (s.catalog_scene) j["catalog_scene"] = *s.catalog_scene;
+      scenes.push_back(j);
+    }
+    Json hypotheses = Json::array();
+    for (const report::HypothesisRecord& r : h.hypotheses) {
+      Json j = {{"rank", r.rank},
+                {"scene", scene_index.count(r.scene) ? Json(scene_index[r.scene]) : Json(nullptr)},
+                {"score", r.score ? Json(*r.score) : Json(nullptr)},
+                {"measures", measuresJson(r.measures)},
+                {"vertex_count", r.vertex_count.value_or(r.vertices.size())},
+                {"scale", r.scale ? Json(*r.scale) : Json(nullptr)}};
+      if (!r.file.empty()) j["file"] = r.file;
+      if (r.box) {
+        j["box"] = {{"centre", vectorJson(r.box->centre)},
+                    {"extents", vectorJson(r.box->extents)},
+                    {"axes", Json::array({vectorJson(r.box->axes.col(0)),
+                                          vectorJson(r.box->axes.col(1)),
+                                          vectorJson(r.box->axes.col(2))})}};
+      }
+      hypotheses.push_back(j);
+    }
+    Json palette = Json::array();
+    for (const auto& c : kRankPalette) palette.push_back({c[0], c[1], c[2]});
+    Json doc = {{"folder", data_.settings().dir.string()},
+                {"scenes", scenes},
+                {"hypotheses", hypotheses},
+                {"palette", palette},
+                {"labeller", data_.settings().labeller},
+                {"catalog", data_.catalogPath().string()}};
+    if (h.scoring) doc["scoring"] = {{"kind", h.scoring->kind}, {"model", h.scoring->model}};
+    if (!data_.labellingOff().empty()) doc["labelling_off"] = data_.labellingOff();
+    return HttpReply::json(dump(doc));
+  }
+  constexpr std::string_view kScenes = "/api/scenes/";
+  if (path.substr(0, kScenes.size()) == kScenes) {
+    const std::string_view rest = path.substr(kScenes.size());
+    const std::size_t slash = rest.find('/');
+    const std::optional<std::int64_t> index = wholeNumber(rest.substr(0, slash));
+    if (!index || static_cast<std::size_t>(*index) >= data_.scenes().size()) {
+      return jsonError(404, "no such scene");
+    }
+    const ViewScene& scene = data_.scenes()[static_cast<std::size_t>(*index)];
+    if (slash == std::string_view::npos) return jsonError(404, "not found");
+    return sceneRoute(request, scene, rest.substr(slash + 1));
+  }
+  constexpr std::string_view kResults = "/results/";
+  if (path.substr(0, kResults.size()) == kResults) {
+    const fs::path file = resultFile(data_.settings().dir, path.substr(kResults.size()));
+    if (file.empty()) return HttpReply::text(404, "no such file in the results folder");
+    return HttpReply::sendFile(file);
+  }
+  return HttpReply::text(404, "not found");
+}
+
+HttpReply ViewServer::sceneRoute(const HttpRequest& request, const ViewScene& scene,
+                                 std::string_view rest) {
+  if (!scene.error.empty()) return jsonError(404, "this scene cannot be shown: " + scene.error);
+  if (rest == "mesh") return HttpReply::bytes("application/octet-stream", scene.payload);
+  constexpr std::string_view kHypotheses = "hypotheses/", kSegments = "segments/";
+  const auto numberBefore = [](std::string_view text, std::string_view suffix) {
+    if (text.size() <= suffix.size() || text.substr(text.size() - suffix.size()) != suffix) {
+      return std::optional<std::int64_t>();
+    }
+    return wholeNumber(text.substr(0, text.size() - suffix.size()));
+  };
+  if (rest.substr(0, kHypotheses.size()) == kHypotheses) {
+    const auto rank = numberBefore(rest.substr(kHypotheses.size()), "/vertices");
+    for (const auto& [r, vertices] : scene.hypothesis_vertices) {
+      if (rank && static_cast<std::int64_t>(r) == *rank) {
+        return HttpReply::bytes("application/octet-stream", u32Bytes(vertices));
+      }
+    }
+    return jsonError(404, "no such hypothesis in this scene");
+  }
+  if (rest.substr(0, kSegments.size()) == kSegments) {
+    const auto id = numberBefore(rest.substr(kSegments.size()), "/vertices");
+    for (const ViewScene::Segment& s : scene.segments) {
+      if (id && s.id == *id) return HttpReply::bytes("application/octet-stream", u32Bytes(s.preview));
+    }
+    return jsonError(404, "no such segment in this scene");
+  }
+  if (!scene.catalog_scene) {
+    return jsonError(409, "this scene cannot be labelled: " +
+                              (scene.label_error.empty() ? data_.labellingOff() : scene.label_error));
+  }
+  if (rest == "at") {
+    char value[32] = "";
+    const int n = request.query.empty() ? -1
+                                        : mg_get_var(request.query.c_str(), request.query.size(),
+                                                     "vertex", value, sizeof value);
+    const std::optional<std::int64_t> vertex = n > 0 ? wholeNumber(value) : std::nullopt;
+    if (!vertex) return jsonError(400, "give ?vertex=N, a vertex of the preview mesh");
+    std::vector<std::pair<std::size_t, std::int64_t>> found;  // (size, id)
+    for (const ViewScene::Segment& s : scene.segments) {
+      if (std::binary_search(s.preview.begin(), s.preview.end(),
+                             static_cast<std::uint32_t>(*vertex))) {
+        found.emplace_back(s.vertex_count, s.id);
+      }
+    }
+    std::sort(found.begin(), found.end());
+    Json ids = Json::array();
+    for (const auto& f : found) ids.push_back(f.second);
+    return HttpReply::json(dump(Json{{"segments", ids}}));
+  }
+  if (rest == "segments" || rest == "labels") {
+    std::vector<discovery::CatalogSegment> rows;
+    discovery::LabelCounts counts;
+    {
+      std::lock_guard<std::mutex> lock(data_.catalogMutex());
+      rows = data_.catalog()->segments(*scene.catalog_scene, false);
+      counts = data_.catalog()->labelCounts(*scene.catalog_scene);
+    }
+    std::map<std::int64_t, const discovery::CatalogSegment*> by_id;
+    for (const discovery::CatalogSegment& c : rows) by_id[c.id] = &c;
+    Json list = Json::array();
+    for (const ViewScene::Segment& s : scene.segments) {
+      const auto it = by_id.find(s.id);
+      const discovery::CatalogSegment* c = it == by_id.end() ? nullptr : it->second;
+      Json j = {{"id", s.id},
+                {"label", c ? labelJson(c->label) : Json(nullptr)},
+                {"by", c ? c->labelled_by : std::string()},
+                {"at", c ? c->labelled_at : std::string()}};
+      if (rest == "segments") {
+        j["rank"] = s.rank ? Json(s.rank) : Json(nullptr);
+        j["scale"] = s.scale;
+        j["vertex_count"] = s.vertex_count;
+        j["measures"] = measuresJson(s.measures);
+      }
+      list.push_back(j);
+    }
+    return HttpReply::json(dump(Json{{"segments", list}, {"progress", countsJson(counts)}}));
+  }
+  return jsonError(404, "not found");
+}
+
+HttpReply ViewServer::label(const HttpRequest& request) {
+  const Json body = Json::parse(request.body, nullptr, false);
+  if (body.is_discarded() || !body.is_object()) return jsonError(400, "the body is not JSON");
+  const auto segment = body.find("segment");
+  if (segment == body.end() || !segment->is_number_integer()) {
+    return jsonError(400, "give \"segment\": the id of a candidate segment");
+  }
+  std::optional<int> value;
+  const auto given = body.find("label");
+  if (given == body.end()) return jsonError(400, "give \"label\": object, not_object, unsure or null");
+  if (!given->is_null()) {
+    const std::string name = given->is_string() ? given->get<std::string>() : std::string();
+    for (std::size_t k = 0; k < kLabelNames.size(); ++k) {
+      if (name == kLabelNames[k]) value = static_cast<int>(k);
+    }
+    if (!value) return jsonError(400, "a label is object, not_object, unsure or null");
+  }
+  const std::optional<std::string> by = labellerOf(body, data_.settings().labeller);
+  if (!by) return jsonError(400, "\"by\" is a name of 1 to 64 characters, without control characters");
+  const auto id = segment->get<std::int64_t>();
+  // Only segments of the scenes shown: the page labels what it shows.
+  const ViewScene* owner = nullptr;
+  for (const ViewScene& s : data_.scenes()) {
+    for (const ViewScene::Segment& seg : s.segments) {
+      if (seg.id == id) owner = &s;
+    }
+  }
+  if (!owner || !owner->catalog_scene) return jsonError(404, "no such segment among these scenes");
+  std::lock_guard<std::mutex> lock(data_.catalogMutex());
+  try {
+    const discovery::LabelEvent e = data_.catalog()->setLabel(id, value, *by);
+    Json j = eventJson(e);
+    j["progress"] = countsJson(data_.catalog()->labelCounts(*owner->catalog_scene));
+    return HttpReply::json(dump(j));
+  } catch (const std::invalid_argument& e) {
+    return jsonError(400, e.what());
+  } catch (const std::exception& e) {
+    log::warning(std::string("a label could not be stored: ") + e.what());
+    return jsonError(503, std::string("the label was not stored: ") + e.what());
+  }
+}
+
+HttpReply ViewServer::undo(const HttpRequest& request) {
+  const Json body = Json::parse(request.body, nullptr, false);
+  if (body.is_discarded() || !body.is_object()) return jsonError(400, "the body is not JSON");
+  const auto event = body.find("event");
+  if (event == body.end() || !event->is_number_integer()) {
+    return jsonError(400, "give \"event\": the id of the label event to undo");
+  }
+  const std::optional<std::string> by = labellerOf(body, data_.settings().labeller);
+  if (!by) return jsonError(400, "\"by\" is a name of 1 to 64 characters, without control characters");
+  if (!data_.catalog()) return jsonError(409, "labelling is off: " + data_.labellingOff());
+  std::lock_guard<std::mutex> lock(data_.catalogMutex());
+  try {
+    const discovery::LabelEvent e = data_.catalog()->undoLabel(event->get<std::int64_t>(), *by);
+    Json j = eventJson(e);
+    j["progress"] = countsJson(data_.catalog()->labelCounts(e.scene_id));
+    return HttpReply::json(dump(j));
+  } catch (const discovery::LabelConflict& e) {
+    return jsonError(409, e.what());
+  } catch (const std::invalid_argument& e) {
+    return jsonError(404, e.what());
+  } catch (const std::exception& e) {
+    log::warning(std::string("an undo could not be stored: ") + e.what());
+    return jsonError(503, std::string("the undo was not stored: ") + e.what());
+  }
+}
+
+}  // namespace objscan::app

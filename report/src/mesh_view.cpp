@@ -1,0 +1,107 @@
+#include "objscan/report/mesh_view.h"
+
+#include <algorithm>
+#include <cstring>
+#include <limits>
+#include <stdexcept>
+
+#include "mesh_view_js.h"         // generated from report/web/mesh_view.js
+#include "orbit_controls_js.h"    // generated from libjs-three's OrbitControls.js
+#include "three_js.h"             // generated from libjs-three's three.min.js
+
+namespace objscan::report {
+namespace {
+
+void putU32(std::string& out, std::uint32_t v) {
+  const char bytes[4] = {static_cast<char>(v & 0xff), static_cast<char>((v >> 8) & 0xff),
+                         static_cast<char>((v >> 16) & 0xff), static_cast<char>(v >> 24)};
+  out.append(bytes, 4);
+}
+
+void putF32(std::string& out, float f) {
+  std::uint32_t v = 0;
+  std::memcpy(&v, &f, 4);
+  putU32(out, v);
+}
+
+void putU16(std::string& out, std::uint16_t v) {
+  out.push_back(static_cast<char>(v & 0xff));
+  out.push_back(static_cast<char>(v >> 8));
+}
+
+}  // namespace
+
+std::string_view threeJs() { return web::kThreeJs; }
+std::string_view orbitControlsJs() { return web::kOrbitControlsJs; }
+std::string_view meshViewJs() { return web::kMeshViewJs; }
+
+ViewMesh viewMesh(const TriangleMesh& mesh, const std::vector<HypothesisRecord>& hypotheses,
+                  const std::string& scene, std::size_t max_triangles) {
+  ViewMesh view;
+  view.preview = decimateByClustering(mesh, max_triangles);
+  view.ranks.assign(view.preview.mesh.positions.size(), 0);
+  for (const HypothesisRecord& h : hypotheses) {
+    if (h.scene != scene || h.rank == 0 || h.rank > std::numeric_limits<std::uint16_t>::max()) {
+      continue;
+    }
+    const auto rank = static_cast<std::uint16_t>(h.rank);
+    for (const std::int32_t v : h.vertices) {
+      if (v < 0 || static_cast<std::size_t>(v) >= mesh.positions.size()) {
+        throw std::invalid_argument("hypothesis " + std::to_string(h.rank) + " names vertex " +
+                                    std::to_string(v) + ", outside its scene's " +
+                                    std::to_string(mesh.positions.size()));
+      }
+      const std::int32_t p = view.preview.vertex_map[static_cast<std::size_t>(v)];
+      if (p < 0) continue;
+      std::uint16_t& r = view.ranks[static_cast<std::size_t>(p)];
+      if (r == 0 || rank < r) r = rank;
+    }
+  }
+  return view;
+}
+
+std::string meshViewPayload(const ViewMesh& view) {
+  const TriangleMesh& mesh = view.preview.mesh;
+  const std::size_t n = mesh.positions.size();
+  const bool colours = mesh.hasColors();
+  std::string out;
+  out.reserve(20 + n * (12 + (colours ? 4 : 0) + 2) + 4 + mesh.triangles.size() * 12);
+  out.append("OSVM", 4);
+  putU32(out, 1);
+  putU32(out, static_cast<std::uint32_t>(n));
+  putU32(out, static_cast<std::uint32_t>(mesh.triangles.size()));
+  putU32(out, colours ? 1u : 0u);
+  for (const Eigen::Vector3f& p : mesh.positions) {
+    for (int d = 0; d < 3; ++d) putF32(out, p[d]);
+  }
+  if (colours) {
+    for (const Rgb8& c : mesh.colors) {
+      out.push_back(static_cast<char>(c[0]));
+      out.push_back(static_cast<char>(c[1]));
+      out.push_back(static_cast<char>(c[2]));
+      out.push_back(static_cast<char>(255));
+    }
+  }
+  for (std::size_t i = 0; i < n; ++i) putU16(out, i < view.ranks.size() ? view.ranks[i] : 0);
+  if (n % 2 == 1) putU16(out, 0);
+  for (const Eigen::Vector3i& t : mesh.triangles) {
+    for (int k = 0; k < 3; ++k) putU32(out, static_cast<std::uint32_t>(t[k]));
+  }
+  return out;
+}
+
+std::vector<std::uint32_t> previewVertices(const DecimatedMesh& preview,
+                                           const std::vector<std::int32_t>& vertices) {
+  std::vector<std::uint32_t> out;
+  out.reserve(vertices.size());
+  for (const std::int32_t v : vertices) {
+    if (v < 0 || static_cast<std::size_t>(v) >= preview.vertex_map.size()) continue;
+    const std::int32_t p = preview.vertex_map[static_cast<std::size_t>(v)];
+    if (p >= 0) out.push_back(static_cast<std::uint32_t>(p));
+  }
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+  return out;
+}
+
+}  // namespace objscan::report
