@@ -6,8 +6,11 @@
 #include <array>
 #include <bit>
 #include <cerrno>
+#include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
+#include <ctime>
 #include <fstream>
 #include <limits>
 #include <stdexcept>
@@ -21,11 +24,31 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// The schema, version 1 (PRAGMA user_version). Vertex lists live in their own table so that the
+// The schema, version 2 (PRAGMA user_version). Vertex lists live in their own table so that the
 // segments table stays a few dozen bytes a row: SQLite keeps up to a page of a row's BLOB inline,
 // and recurrenceEntries() scans every segment. AUTOINCREMENT: ids are never reused, so an id kept
-// elsewhere (a label file) cannot come to name another segment after a scene is replaced.
-// The CHECKs are the catalog's validation: a violation rolls the whole addScene() back.
+// elsewhere (a label file, a viewer's page) cannot come to name another segment after a scene is
+// replaced. The CHECKs are the catalog's validation: a violation rolls the whole write back.
+// People's labels (kLabelTables) are rows of their own, with who and when; label_events is their
+// history, only ever appended to. Both go with their segments when a scene is replaced.
+constexpr const char* kLabelTables = R"sql(
+CREATE TABLE segment_labels (
+  segment_id INTEGER PRIMARY KEY REFERENCES segments(id) ON DELETE CASCADE,
+  label INTEGER NOT NULL CHECK (label IN (0, 1, 2)),
+  labelled_by TEXT NOT NULL,
+  labelled_at TEXT NOT NULL);
+CREATE TABLE label_events (
+  id INTEGER PRIMARY KEY AUTOINCREMENT,
+  segment_id INTEGER NOT NULL REFERENCES segments(id) ON DELETE CASCADE,
+  scene_id INTEGER NOT NULL REFERENCES scenes(id) ON DELETE CASCADE,
+  label INTEGER CHECK (label IN (0, 1, 2)),
+  previous INTEGER CHECK (previous IN (0, 1, 2)),
+  labelled_by TEXT NOT NULL,
+  labelled_at TEXT NOT NULL,
+  undoes INTEGER);
+CREATE INDEX label_events_by_scene ON label_events(scene_id);
+CREATE INDEX label_events_by_segment ON label_events(segment_id);
+)sql";
 constexpr const char* kSchema = R"sql(
 CREATE TABLE scenes (
   id INTEGER PRIMARY KEY AUTOINCREMENT,
@@ -45,21 +68,59 @@ CREATE TABLE segments (
   extent_0 REAL CHECK (extent_0 >= 0),
   extent_1 REAL CHECK (extent_1 >= 0),
   extent_2 REAL CHECK (extent_2 >= 0),
-  compactness REAL, symmetry REAL, smoothness REAL, local_convexity REAL, global_convexity REAL,
-  label INTEGER CHECK (label IN (0, 1)));
+  compactness REAL, symmetry REAL, smoothness REAL, local_convexity REAL, global_convexity REAL);
 CREATE INDEX segments_by_scene ON segments(scene_id);
 CREATE TABLE segment_vertices (
   segment_id INTEGER PRIMARY KEY REFERENCES segments(id) ON DELETE CASCADE,
   vertices BLOB NOT NULL);
-PRAGMA user_version = 1;
 )sql";
 constexpr std::array<const char*, 3> kTables = {"scenes", "segments", "segment_vertices"};
 
-// Column lists shared by the statements that read segments (their order is readSegment()'s).
+// Version 1 to 2: version 1 kept a 0/1 label in segments.label, without who or when. They move
+// to segment_labels, each with an event, by "objscan (schema 1)" at the time of the upgrade.
+constexpr const char* kUpgradeFrom1 = R"sql(
+INSERT INTO segment_labels (segment_id, label, labelled_by, labelled_at)
+  SELECT id, label, 'objscan (schema 1)', strftime('%Y-%m-%dT%H:%M:%fZ', 'now')
+  FROM segments WHERE label IS NOT NULL ORDER BY id;
+INSERT INTO label_events (segment_id, scene_id, label, previous, labelled_by, labelled_at)
+  SELECT l.segment_id, s.scene_id, l.label, NULL, l.labelled_by, l.labelled_at
+  FROM segment_labels l JOIN segments s ON s.id = l.segment_id ORDER BY l.segment_id;
+ALTER TABLE segments DROP COLUMN label;
+)sql";
+
+// Column lists shared by the statements that read segments (their order is readSegment()'s),
+// and the join that brings each segment's label.
 constexpr const char* kSegmentColumns =
     "s.id, s.scene_id, s.scale, s.centroid_x, s.centroid_y, s.centroid_z, s.axes, "
     "s.eigenvalue_0, s.eigenvalue_1, s.eigenvalue_2, s.extent_0, s.extent_1, s.extent_2, "
-    "s.compactness, s.symmetry, s.smoothness, s.local_convexity, s.global_convexity, s.label";
+    "s.compactness, s.symmetry, s.smoothness, s.local_convexity, s.global_convexity, "
+    "l.label, l.labelled_by, l.labelled_at";
+constexpr const char* kSegmentsWithLabels =
+    " FROM segments s LEFT JOIN segment_labels l ON l.segment_id = s.id";
+// The columns of a label event (readEvent()'s order).
+constexpr const char* kEventColumns =
+    "id, segment_id, scene_id, label, previous, labelled_by, labelled_at, undoes";
+
+/// Now, in ISO 8601 UTC with milliseconds: "2026-11-25T14:51:46.123Z".
+std::string nowUtc() {
+  const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(
+                      std::chrono::system_clock::now().time_since_epoch())
+                      .count();
+  const auto seconds = static_cast<std::time_t>(ms / 1000);
+  std::tm utc{};
+  gmtime_r(&seconds, &utc);
+  char date[24];
+  std::strftime(date, sizeof date, "%Y-%m-%dT%H:%M:%S", &utc);
+  char out[32];
+  std::snprintf(out, sizeof out, "%s.%03dZ", date, static_cast<int>(ms % 1000));
+  return out;
+}
+
+bool isLabel(int label) { return label >= 0 && label <= 2; }
+
+void requireLabeller(const std::string& by) {
+  if (by.empty()) throw std::invalid_argument("a label needs the name of who set it (empty)");
+}
 
 enum class Access { kRead, kWrite };
 
@@ -102,7 +163,7 @@ class Statement {
     if (rc == SQLITE_OK) return;
     sqlite3_finalize(statement_);  // the destructor does not run when the constructor throws
     if (checks_schema && (rc & 0xff) == SQLITE_ERROR) {
-      throw InputError(connection.path, "not an objscan catalog of schema version 1 (" +
+      throw InputError(connection.path, "not an objscan catalog of schema version 2 (" +
                                             std::string(sqlite3_errmsg(connection.db)) + ")");
     }
     connection.fail(rc, "preparing a query", access);
@@ -305,6 +366,9 @@ struct Catalog::Impl {
       std::tie(version, tables) = readSchema();  // another process may have created it meanwhile
       if (version == 0 && tables.empty()) {
         execute(connection, kSchema, "creating the catalog's tables", Access::kWrite);
+        execute(connection, kLabelTables, "creating the catalog's tables", Access::kWrite);
+        execute(connection, "PRAGMA user_version = 2", "creating the catalog's tables",
+                Access::kWrite);
         version = kSchemaVersion;
         tables.assign(kTables.begin(), kTables.end());
       }
@@ -323,12 +387,57 @@ struct Catalog::Impl {
                                               table + "' table)");
       }
     }
+    if (version == 1) version = upgradeFrom1();
     if (version != kSchemaVersion) {
       throw InputError(connection.path, "not an objscan catalog (schema version " +
                                             std::to_string(version) + ", expected " +
                                             std::to_string(kSchemaVersion) + ")");
     }
     prepareStatements();
+  }
+
+  /// Upgrades a version-1 catalog to version 2 in one transaction; returns the version now (2,
+  /// also when another process upgraded it meanwhile). A file that cannot be written is an
+  /// OutputError; one that is not what version 1 was, an InputError; the file is then unchanged.
+  int upgradeFrom1() {
+    const fs::path& file = connection.path;
+    const auto run = [&](const char* sql) {
+      const int rc = sqlite3_exec(connection.db, sql, nullptr, nullptr, nullptr);
+      if (rc == SQLITE_OK) return;
+      const std::string message = sqlite3_errmsg(connection.db);
+      switch (rc & 0xff) {
+        case SQLITE_ERROR:
+          throw InputError(file, "not an objscan catalog of schema version 1 (" + message + ")");
+        case SQLITE_CONSTRAINT:
+          throw InputError(file,
+                           "damaged: its schema-version-1 labels cannot be upgraded to "
+                           "version 2 (" +
+                               message + ")");
+        case SQLITE_NOTADB:
+        case SQLITE_CORRUPT:
+          connection.fail(rc, "upgrading", Access::kWrite);
+        default:
+          throw OutputError(file,
+                            "a catalog of schema version 1, which this objscan upgrades to "
+                            "version 2 when it opens it, and the upgrade failed (" +
+                                message +
+                                "); the file is unchanged: make it (and its folder) writable, "
+                                "or let the process that holds it finish, and run again");
+      }
+    };
+    run("BEGIN IMMEDIATE");
+    try {
+      if (readSchema().first == 1) {  // else another process upgraded it meanwhile
+        run(kLabelTables);
+        run(kUpgradeFrom1);
+        run("PRAGMA user_version = 2");
+      }
+      run("COMMIT");
+    } catch (...) {
+      sqlite3_exec(connection.db, "ROLLBACK", nullptr, nullptr, nullptr);
+      throw;
+    }
+    return readSchema().first;
   }
 
   std::pair<int, std::vector<std::string>> readSchema() {
@@ -369,21 +478,51 @@ struct Catalog::Impl {
     insert_segment = prepare(
         "INSERT INTO segments (scene_id, scale, centroid_x, centroid_y, centroid_z, axes, "
         "eigenvalue_0, eigenvalue_1, eigenvalue_2, extent_0, extent_1, extent_2, compactness, "
-        "symmetry, smoothness, local_convexity, global_convexity, label) "
-        "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18)",
+        "symmetry, smoothness, local_convexity, global_convexity) "
+        "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17)",
         Access::kWrite);
     insert_vertices = prepare("INSERT INTO segment_vertices (segment_id, vertices) VALUES (?1, ?2)",
                               Access::kWrite);
-    list_segments = prepare(std::string("SELECT ") + kSegmentColumns +
-                                ", NULL FROM segments s WHERE s.scene_id = ?1 ORDER BY s.id",
+    list_segments = prepare(std::string("SELECT ") + kSegmentColumns + ", NULL" +
+                                kSegmentsWithLabels + " WHERE s.scene_id = ?1 ORDER BY s.id",
                             Access::kRead);
-    list_segments_with_vertices = prepare(
-        std::string("SELECT ") + kSegmentColumns +
-            ", v.vertices FROM segments s LEFT JOIN segment_vertices v ON v.segment_id = s.id "
-            "WHERE s.scene_id = ?1 ORDER BY s.id",
+    list_segments_with_vertices =
+        prepare(std::string("SELECT ") + kSegmentColumns + ", v.vertices" + kSegmentsWithLabels +
+                    " LEFT JOIN segment_vertices v ON v.segment_id = s.id "
+                    "WHERE s.scene_id = ?1 ORDER BY s.id",
+                Access::kRead);
+    scenes_with_hash = prepare(
+        "SELECT id, name, content_hash, vertex_count, settings FROM scenes "
+        "WHERE content_hash = ?1 ORDER BY id",
         Access::kRead);
-    set_label =
-        prepare("UPDATE segments SET label = ?1 WHERE id = ?2 AND scene_id = ?3", Access::kWrite);
+    segment_label = prepare(
+        std::string("SELECT s.scene_id, l.label") + kSegmentsWithLabels + " WHERE s.id = ?1",
+        Access::kWrite);
+    put_label = prepare(
+        "INSERT INTO segment_labels (segment_id, label, labelled_by, labelled_at) "
+        "VALUES (?1, ?2, ?3, ?4) ON CONFLICT (segment_id) DO UPDATE SET label = excluded.label, "
+        "labelled_by = excluded.labelled_by, labelled_at = excluded.labelled_at",
+        Access::kWrite);
+    clear_label = prepare("DELETE FROM segment_labels WHERE segment_id = ?1", Access::kWrite);
+    insert_event = prepare(
+        "INSERT INTO label_events (segment_id, scene_id, label, previous, labelled_by, "
+        "labelled_at, undoes) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)",
+        Access::kWrite);
+    find_event =
+        prepare(std::string("SELECT ") + kEventColumns + " FROM label_events WHERE id = ?1",
+                Access::kWrite);
+    latest_event = prepare(std::string("SELECT ") + kEventColumns +
+                               " FROM label_events WHERE segment_id = ?1 ORDER BY id DESC LIMIT 1",
+                           Access::kWrite);
+    list_events = prepare(std::string("SELECT ") + kEventColumns +
+                              " FROM label_events WHERE scene_id = ?1 ORDER BY id",
+                          Access::kRead);
+    label_counts = prepare(std::string("SELECT count(*), count(l.label), "
+                                       "coalesce(sum(l.label = 1), 0), "
+                                       "coalesce(sum(l.label = 0), 0), "
+                                       "coalesce(sum(l.label = 2), 0)") +
+                               kSegmentsWithLabels + " WHERE s.scene_id = ?1",
+                           Access::kRead);
     recurrence_entries = prepare(
         "SELECT scene_id, extent_0, extent_1, extent_2, compactness, symmetry, smoothness, "
         "local_convexity, global_convexity FROM segments ORDER BY id",
@@ -428,8 +567,12 @@ struct Catalog::Impl {
     segment.measures.smoothness = s.real(15);
     segment.measures.local_convexity = s.real(16);
     segment.measures.global_convexity = s.real(17);
-    if (!s.isNull(18)) segment.label = static_cast<int>(s.integer(18));
-    const std::string_view vertices = s.blob(19);
+    if (!s.isNull(18)) {
+      segment.label = static_cast<int>(s.integer(18));
+      segment.labelled_by = s.text(19);
+      segment.labelled_at = s.text(20);
+    }
+    const std::string_view vertices = s.blob(21);
     if (vertices.size() % 4 != 0) {
       throw InputError(connection.path, "damaged: segment " + std::to_string(segment.id) +
                                             " has a vertex list of " +
@@ -442,6 +585,102 @@ struct Catalog::Impl {
     return segment;
   }
 
+  static std::optional<int> optionalLabel(const Statement& s, int c) {
+    if (s.isNull(c)) return std::nullopt;
+    return static_cast<int>(s.integer(c));
+  }
+
+  static LabelEvent readEvent(const Statement& s) {
+    LabelEvent e;
+    e.id = s.integer(0);
+    e.segment_id = s.integer(1);
+    e.scene_id = s.integer(2);
+    e.label = optionalLabel(s, 3);
+    e.previous = optionalLabel(s, 4);
+    e.by = s.text(5);
+    e.at = s.text(6);
+    if (!s.isNull(7)) e.undoes = s.integer(7);
+    return e;
+  }
+
+  /// The segment's scene and label; nothing for an unknown segment.
+  std::optional<std::pair<std::int64_t, std::optional<int>>> labelOf(std::int64_t segment_id) {
+    Statement& s = segment_label->start().bind(1, segment_id);
+    std::optional<std::pair<std::int64_t, std::optional<int>>> found;
+    if (s.step("reading a label")) found.emplace(s.integer(0), optionalLabel(s, 1));
+    s.finish();
+    return found;
+  }
+
+  /// Stores one label (or clears it) and its event; inside a transaction the caller holds.
+  /// `scene_id`: the scene the segment must be in (nothing: any). Throws std::invalid_argument
+  /// for an unknown segment or one of another scene.
+  LabelEvent applyLabel(std::int64_t segment_id, std::optional<std::int64_t> scene_id,
+                        std::optional<int> label, const std::string& by, const std::string& at,
+                        std::optional<std::int64_t> undoes) {
+    const auto current = labelOf(segment_id);
+    if (!current || (scene_id && current->first != *scene_id)) {
+      throw std::invalid_argument(
+          connection.path.string() + ": segment " + std::to_string(segment_id) + " is not in " +
+          (scene_id ? "scene " + std::to_string(*scene_id) : std::string("the catalog")));
+    }
+    LabelEvent e;
+    e.segment_id = segment_id;
+    e.scene_id = current->first;
+    e.label = label;
+    e.previous = current->second;
+    e.by = by;
+    e.at = at;
+    e.undoes = undoes;
+    if (label) {
+      Statement& s = put_label->start()
+                         .bind(1, segment_id)
+                         .bind(2, static_cast<std::int64_t>(*label))
+                         .bind(3, by)
+                         .bind(4, at);
+      s.step("setting a label");
+      s.finish();
+    } else {
+      Statement& s = clear_label->start().bind(1, segment_id);
+      s.step("clearing a label");
+      s.finish();
+    }
+    insertEvent(e);
+    e.id = sqlite3_last_insert_rowid(connection.db);
+    return e;
+  }
+
+  void insertEvent(const LabelEvent& e) {
+    Statement& s = insert_event->start().bind(1, e.segment_id).bind(2, e.scene_id);
+    if (e.label) {
+      s.bind(3, static_cast<std::int64_t>(*e.label));
+    } else {
+      s.bindNull(3);
+    }
+    if (e.previous) {
+      s.bind(4, static_cast<std::int64_t>(*e.previous));
+    } else {
+      s.bindNull(4);
+    }
+    s.bind(5, e.by).bind(6, e.at);
+    if (e.undoes) {
+      s.bind(7, *e.undoes);
+    } else {
+      s.bindNull(7);
+    }
+    s.step("recording a label event");
+    s.finish();
+  }
+
+  /// The event with this id, or the latest of a segment.
+  std::optional<LabelEvent> event(Statement* query, std::int64_t id) {
+    Statement& s = query->start().bind(1, id);
+    std::optional<LabelEvent> found;
+    if (s.step("reading a label event")) found = readEvent(s);
+    s.finish();
+    return found;
+  }
+
   Connection connection;
   std::vector<std::unique_ptr<Statement>> statements;
   Statement* find_scene = nullptr;
@@ -452,7 +691,15 @@ struct Catalog::Impl {
   Statement* insert_vertices = nullptr;
   Statement* list_segments = nullptr;
   Statement* list_segments_with_vertices = nullptr;
-  Statement* set_label = nullptr;
+  Statement* scenes_with_hash = nullptr;
+  Statement* segment_label = nullptr;
+  Statement* put_label = nullptr;
+  Statement* clear_label = nullptr;
+  Statement* insert_event = nullptr;
+  Statement* find_event = nullptr;
+  Statement* latest_event = nullptr;
+  Statement* list_events = nullptr;
+  Statement* label_counts = nullptr;
   Statement* recurrence_entries = nullptr;
   Statement* count_segments = nullptr;
 };
@@ -478,6 +725,7 @@ std::int64_t Catalog::addScene(const CatalogScene& scene,
     throw std::invalid_argument("a scene's vertex count must fit in 63 bits");
   }
   Transaction transaction(c);
+  const std::string now = nowUtc();
   // Each statement is reset right after its step, also when the step throws (step() resets).
   Statement& del = impl_->delete_scene->start().bind(1, scene.content_hash).bind(2, scene.settings);
   del.step("replacing a scene");
@@ -499,19 +747,23 @@ std::int64_t Catalog::addScene(const CatalogScene& scene,
     for (int d = 0; d < 3; ++d) s.bind(10 + d, static_cast<double>(g.extents[d]));
     const std::array<double, 5> m = recurrenceMeasures(g.measures);
     for (int j = 0; j < 5; ++j) s.bind(13 + j, m[static_cast<std::size_t>(j)]);
-    if (g.label) {
-      s.bind(18, static_cast<std::int64_t>(*g.label));
-    } else {
-      s.bindNull(18);
-    }
     s.step("adding a segment");
     s.finish();
+    const std::int64_t segment_id = sqlite3_last_insert_rowid(c.db);
     if (!g.vertices.empty()) {
       Statement& v = impl_->insert_vertices->start()
-                         .bind(1, static_cast<std::int64_t>(sqlite3_last_insert_rowid(c.db)))
+                         .bind(1, segment_id)
                          .bindBlob(2, encodeVertices(g.vertices));
       v.step("adding a segment's vertices");
       v.finish();
+    }
+    if (g.label) {
+      if (!isLabel(*g.label)) {
+        throw std::invalid_argument("a label is 1 (object), 0 (not an object) or 2 (unsure), not " +
+                                    std::to_string(*g.label));
+      }
+      impl_->applyLabel(segment_id, scene_id, g.label,
+                        g.labelled_by.empty() ? "objscan" : g.labelled_by, now, std::nullopt);
     }
   }
   transaction.commit();
@@ -541,30 +793,119 @@ std::vector<CatalogSegment> Catalog::segments(std::int64_t scene_id, bool with_v
   return out;
 }
 
-void Catalog::setLabels(std::int64_t scene_id,
-                        const std::vector<std::pair<std::int64_t, int>>& segment_labels) {
-  for (const auto& [segment_id, label] : segment_labels) {
-    if (label != 0 && label != 1) {
-      throw std::invalid_argument("a label is 1 (object) or 0 (not an object), not " +
-                                  std::to_string(label) + " (segment " +
-                                  std::to_string(segment_id) + ")");
-    }
+std::vector<CatalogScene> Catalog::scenesWithHash(const std::string& content_hash) const {
+  Statement& s = impl_->scenes_with_hash->start().bind(1, content_hash);
+  std::vector<CatalogScene> out;
+  while (s.step("listing scenes")) out.push_back(Impl::readScene(s));
+  s.finish();
+  return out;
+}
+
+namespace {
+
+void requireLabel(int label, std::int64_t segment_id) {
+  if (!isLabel(label)) {
+    throw std::invalid_argument("a label is 1 (object), 0 (not an object) or 2 (unsure), not " +
+                                std::to_string(label) + " (segment " + std::to_string(segment_id) +
+                                ")");
   }
-  const Connection& c = impl_->connection;
-  Transaction transaction(c);
+}
+
+}  // namespace
+
+void Catalog::setLabels(std::int64_t scene_id,
+                        const std::vector<std::pair<std::int64_t, int>>& segment_labels,
+                        const std::string& by) {
+  requireLabeller(by);
+  for (const auto& [segment_id, label] : segment_labels) requireLabel(label, segment_id);
+  Transaction transaction(impl_->connection);
+  // The time is taken once the write lock is held, so that events' times follow their ids.
+  const std::string now = nowUtc();
   for (const auto& [segment_id, label] : segment_labels) {
-    Statement& s = impl_->set_label->start()
-                       .bind(1, static_cast<std::int64_t>(label))
-                       .bind(2, segment_id)
-                       .bind(3, scene_id);
-    s.step("setting a label");
-    s.finish();
-    if (sqlite3_changes(c.db) == 0) {
-      throw std::invalid_argument(c.path.string() + ": segment " + std::to_string(segment_id) +
-                                  " is not in scene " + std::to_string(scene_id));
-    }
+    impl_->applyLabel(segment_id, scene_id, label, by, now, std::nullopt);
   }
   transaction.commit();
+}
+
+LabelEvent Catalog::setLabel(std::int64_t segment_id, std::optional<int> label,
+                             const std::string& by) {
+  requireLabeller(by);
+  if (label) requireLabel(*label, segment_id);
+  Transaction transaction(impl_->connection);
+  LabelEvent e = impl_->applyLabel(segment_id, std::nullopt, label, by, nowUtc(), std::nullopt);
+  transaction.commit();
+  return e;
+}
+
+namespace {
+
+std::string labelText(const std::optional<int>& label) {
+  if (!label) return "no label";
+  switch (*label) {
+    case 0:
+      return "not an object";
+    case 1:
+      return "object";
+    case 2:
+      return "unsure";
+    default:
+      return "label " + std::to_string(*label);
+  }
+}
+
+}  // namespace
+
+LabelEvent Catalog::undoLabel(std::int64_t event_id, const std::string& by) {
+  requireLabeller(by);
+  Transaction transaction(impl_->connection);
+  const std::optional<LabelEvent> undone = impl_->event(impl_->find_event, event_id);
+  if (!undone) {
+    throw std::invalid_argument(impl_->connection.path.string() + ": no label event " +
+                                std::to_string(event_id));
+  }
+  // Only the segment's latest event can be undone: a later one means somebody changed the label
+  // since (even back to the same value), or undid this one already.
+  const std::optional<LabelEvent> latest = impl_->event(impl_->latest_event, undone->segment_id);
+  if (!latest || latest->id != event_id) {
+    const std::string segment = "segment " + std::to_string(undone->segment_id);
+    if (latest && latest->undoes == event_id) {
+      throw LabelConflict("label event " + std::to_string(event_id) + " of " + segment +
+                          " was already undone (by " + latest->by + " at " + latest->at + ")");
+    }
+    throw LabelConflict(segment + "'s label was changed after event " + std::to_string(event_id) +
+                        (latest ? " (to " + labelText(latest->label) + " by " + latest->by +
+                                      " at " + latest->at + ")"
+                                : std::string()) +
+                        ": it is not undone");
+  }
+  LabelEvent e =
+      impl_->applyLabel(undone->segment_id, std::nullopt, undone->previous, by, nowUtc(), event_id);
+  transaction.commit();
+  return e;
+}
+
+LabelCounts Catalog::labelCounts(std::int64_t scene_id) const {
+  Statement& s = impl_->label_counts->start().bind(1, scene_id);
+  LabelCounts counts;
+  if (s.step("counting labels")) {
+    const auto n = [&](int c) { return static_cast<std::size_t>(s.integer(c)); };
+    counts = {n(0), n(1), n(2), n(3), n(4)};
+  }
+  s.finish();
+  return counts;
+}
+
+std::vector<LabelEvent> Catalog::labelEvents(std::int64_t scene_id) const {
+  Statement& s = impl_->list_events->start().bind(1, scene_id);
+  std::vector<LabelEvent> out;
+  try {
+    while (s.step("reading label events")) out.push_back(Impl::readEvent(s));
+  } catch (...) {
+    s.finish();
+    throw;
+  }
+  s.finish();
+  return out;
 }
 
 std::vector<RecurrenceEntry> Catalog::recurrenceEntries() const {

@@ -11,9 +11,13 @@
 #include <cstdio>
 #include <filesystem>
 #include <limits>
+#include <map>
+#include <optional>
 #include <random>
+#include <regex>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "objscan/core/error.h"
@@ -48,6 +52,21 @@ std::int64_t sqlInteger(const fs::path& file, const std::string& query) {
       sqlite3_prepare_v2(db, query.c_str(), -1, &s, nullptr) == SQLITE_OK &&
       sqlite3_step(s) == SQLITE_ROW) {
     value = sqlite3_column_int64(s, 0);
+  }
+  sqlite3_finalize(s);
+  sqlite3_close(db);
+  return value;
+}
+
+/// The text a query returns ("" when it returns nothing).
+std::string sqlText(const fs::path& file, const std::string& query) {
+  sqlite3* db = nullptr;
+  sqlite3_stmt* s = nullptr;
+  std::string value;
+  if (sqlite3_open(file.c_str(), &db) == SQLITE_OK &&
+      sqlite3_prepare_v2(db, query.c_str(), -1, &s, nullptr) == SQLITE_OK &&
+      sqlite3_step(s) == SQLITE_ROW && sqlite3_column_text(s, 0) != nullptr) {
+    value = reinterpret_cast<const char*>(sqlite3_column_text(s, 0));
   }
   sqlite3_finalize(s);
   sqlite3_close(db);
@@ -229,7 +248,7 @@ TEST(Catalog, FailedAddSceneChangesNothing) {
   // The same as a replacement of the kept scene: the old one stays whole.
   EXPECT_THROW(catalog.addScene(makeScene("desk", "aa"), bad), std::invalid_argument);
   bad[2].scale = 1.0f;
-  bad[2].label = 2;
+  bad[2].label = 3;
   EXPECT_THROW(catalog.addScene(makeScene("shelf", "bb"), bad), std::invalid_argument);
   bad[2].label.reset();
   bad[2].extents[1] = -0.1f;
@@ -356,9 +375,9 @@ TEST(Catalog, NewerSchemaVersionIsAnInputError) {
   TempDir dir;
   const fs::path file = dir / "catalog.sqlite";
   { Catalog catalog(file); }
-  sql(file, "PRAGMA user_version = 2");
+  sql(file, "PRAGMA user_version = 3");
   expectInputError([&] { Catalog catalog(file); }, file,
-                   "catalog schema version 2 is newer than this objscan's (1)");
+                   "catalog schema version 3 is newer than this objscan's (2)");
 }
 
 TEST(Catalog, SqliteDatabaseWithoutOurTablesIsAnInputError) {
@@ -374,6 +393,8 @@ TEST(Catalog, SqliteDatabaseWithoutOurTablesIsAnInputError) {
       "CREATE TABLE scenes (id INTEGER PRIMARY KEY); CREATE TABLE segments (id INTEGER);"
       "CREATE TABLE segment_vertices (id INTEGER); PRAGMA user_version = 1");
   expectInputError([&] { Catalog catalog(lookalike); }, lookalike, "not an objscan catalog");
+  EXPECT_EQ(sqlInteger(lookalike, "PRAGMA user_version"), 1);  // not "upgraded"
+  EXPECT_EQ(sqlInteger(lookalike, "SELECT count(*) FROM sqlite_schema WHERE type = 'table'"), 3);
 }
 
 TEST(Catalog, MissingFolderIsAnOutputErrorAndAFolderAnInputError) {
@@ -387,6 +408,374 @@ TEST(Catalog, MissingFolderIsAnOutputErrorAndAFolderAnInputError) {
   }
   EXPECT_FALSE(fs::exists(dir / "no such folder"));
   expectInputError([&] { Catalog catalog(dir.path()); }, dir.path(), "is a folder");
+}
+
+// --- People's labels (schema version 2) ---
+
+/// ISO 8601 UTC with milliseconds, as the catalog writes who-and-when.
+bool isUtcTime(const std::string& at) {
+  static const std::regex kFormat(R"(\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d{3}Z)");
+  return std::regex_match(at, kFormat);
+}
+
+/// A catalog with one scene of `n` unlabelled segments; its segment ids.
+std::vector<std::int64_t> unlabelledScene(Catalog& catalog, int n, const std::string& hash = "aa") {
+  std::vector<CatalogSegment> segments;
+  for (int i = 0; i < n; ++i) {
+    segments.push_back(makeSegment(i, 3));
+    segments.back().label.reset();
+  }
+  const std::int64_t scene = catalog.addScene(makeScene("desk", hash), segments);
+  std::vector<std::int64_t> ids;
+  for (const CatalogSegment& s : catalog.segments(scene, false)) ids.push_back(s.id);
+  return ids;
+}
+
+TEST(CatalogLabels, SetChangeAndClearRecordWhoWhenAndThePreviousLabel) {
+  TempDir dir;
+  Catalog catalog(dir / "catalog.sqlite");
+  const std::vector<std::int64_t> ids = unlabelledScene(catalog, 3);
+  const std::int64_t scene = catalog.scenes()[0].id;
+  const LabelEvent set = catalog.setLabel(ids[1], 1, "ana");
+  EXPECT_EQ(set.segment_id, ids[1]);
+  EXPECT_EQ(set.scene_id, scene);
+  EXPECT_EQ(set.label, 1);
+  EXPECT_FALSE(set.previous.has_value());
+  EXPECT_EQ(set.by, "ana");
+  EXPECT_TRUE(isUtcTime(set.at)) << set.at;
+  EXPECT_FALSE(set.undoes.has_value());
+  std::vector<CatalogSegment> segments = catalog.segments(scene, false);
+  EXPECT_EQ(segments[1].label, 1);
+  EXPECT_EQ(segments[1].labelled_by, "ana");
+  EXPECT_EQ(segments[1].labelled_at, set.at);
+  EXPECT_FALSE(segments[0].label.has_value());
+  EXPECT_EQ(segments[0].labelled_by, "");
+  EXPECT_EQ(segments[0].labelled_at, "");
+
+  const LabelEvent changed =
+      catalog.setLabel(ids[1], static_cast<int>(SegmentLabel::kUnsure), "ben");
+  EXPECT_GT(changed.id, set.id);
+  EXPECT_EQ(changed.label, 2);
+  EXPECT_EQ(changed.previous, 1);
+  EXPECT_GE(changed.at, set.at);  // the format sorts as the time does
+  EXPECT_EQ(catalog.segments(scene, false)[1].labelled_by, "ben");
+  const LabelEvent cleared = catalog.setLabel(ids[1], std::nullopt, "ana");
+  EXPECT_FALSE(cleared.label.has_value());
+  EXPECT_EQ(cleared.previous, 2);
+  segments = catalog.segments(scene, true);
+  EXPECT_FALSE(segments[1].label.has_value());
+  EXPECT_EQ(segments[1].labelled_by, "");
+  EXPECT_EQ(segments[1].vertices, makeSegment(1, 3).vertices);
+
+  // The history, oldest first, as setLabel returned it.
+  const std::vector<LabelEvent> events = catalog.labelEvents(scene);
+  ASSERT_EQ(events.size(), 3u);
+  const std::vector<LabelEvent> want = {set, changed, cleared};
+  for (std::size_t i = 0; i < 3; ++i) {
+    EXPECT_EQ(events[i].id, want[i].id);
+    EXPECT_EQ(events[i].segment_id, ids[1]);
+    EXPECT_EQ(events[i].scene_id, scene);
+    EXPECT_EQ(events[i].label, want[i].label);
+    EXPECT_EQ(events[i].previous, want[i].previous);
+    EXPECT_EQ(events[i].by, want[i].by);
+    EXPECT_EQ(events[i].at, want[i].at);
+    EXPECT_FALSE(events[i].undoes.has_value());
+  }
+  EXPECT_TRUE(catalog.labelEvents(scene + 100).empty());
+}
+
+TEST(CatalogLabels, UndoPutsThePreviousLabelBackAndUndoingAnUndoRedoes) {
+  TempDir dir;
+  Catalog catalog(dir / "catalog.sqlite");
+  const std::vector<std::int64_t> ids = unlabelledScene(catalog, 2);
+  const std::int64_t scene = catalog.scenes()[0].id;
+  const LabelEvent first = catalog.setLabel(ids[0], 0, "ana");
+  const LabelEvent second = catalog.setLabel(ids[0], 1, "ana");
+  const LabelEvent undo = catalog.undoLabel(second.id, "ana");
+  EXPECT_GT(undo.id, second.id);
+  EXPECT_EQ(undo.undoes, second.id);
+  EXPECT_EQ(undo.label, 0);
+  EXPECT_EQ(undo.previous, 1);
+  EXPECT_EQ(catalog.segments(scene, false)[0].label, 0);
+  EXPECT_EQ(catalog.segments(scene, false)[0].labelled_by, "ana");
+  // Undoing the undo puts the label it took away back.
+  const LabelEvent redo = catalog.undoLabel(undo.id, "ben");
+  EXPECT_EQ(redo.undoes, undo.id);
+  EXPECT_EQ(redo.label, 1);
+  EXPECT_EQ(catalog.segments(scene, false)[0].label, 1);
+  EXPECT_EQ(catalog.segments(scene, false)[0].labelled_by, "ben");
+  // Only a segment's latest event can be undone.
+  EXPECT_THROW(catalog.undoLabel(first.id, "ana"), LabelConflict);
+  EXPECT_EQ(catalog.labelEvents(scene).size(), 4u);
+  // Undoing a first label clears it (it had none before).
+  const LabelEvent other = catalog.setLabel(ids[1], 2, "ana");
+  const LabelEvent cleared = catalog.undoLabel(other.id, "ana");
+  EXPECT_FALSE(cleared.label.has_value());
+  EXPECT_EQ(cleared.previous, 2);
+  EXPECT_FALSE(catalog.segments(scene, false)[1].label.has_value());
+  EXPECT_EQ(catalog.labelCounts(scene).labelled, 1u);
+}
+
+TEST(CatalogLabels, UndoAfterSomebodyElsesChangeIsAConflictThatChangesNothing) {
+  TempDir dir;
+  const fs::path file = dir / "catalog.sqlite";
+  Catalog mine(file);
+  Catalog theirs(file);  // another tab's or person's server
+  const std::vector<std::int64_t> ids = unlabelledScene(mine, 2);
+  const std::int64_t scene = mine.scenes()[0].id;
+  const LabelEvent e = mine.setLabel(ids[0], 1, "ana");
+  theirs.setLabel(ids[0], 0, "ben");
+  try {
+    mine.undoLabel(e.id, "ana");
+    ADD_FAILURE() << "no conflict";
+  } catch (const LabelConflict& conflict) {
+    EXPECT_NE(std::string(conflict.what()).find("by ben"), std::string::npos) << conflict.what();
+  }
+  // Even when the label is back to the event's: the change since is somebody's decision.
+  theirs.setLabel(ids[0], 1, "ben");
+  EXPECT_THROW(mine.undoLabel(e.id, "ana"), LabelConflict);
+  EXPECT_EQ(mine.segments(scene, false)[0].label, 1);
+  EXPECT_EQ(mine.labelEvents(scene).size(), 3u);
+  // An event already undone is a conflict too.
+  const LabelEvent latest = mine.labelEvents(scene).back();
+  theirs.undoLabel(latest.id, "ben");
+  try {
+    mine.undoLabel(latest.id, "ana");
+    ADD_FAILURE() << "no conflict";
+  } catch (const LabelConflict& conflict) {
+    EXPECT_NE(std::string(conflict.what()).find("already undone"), std::string::npos)
+        << conflict.what();
+  }
+  EXPECT_EQ(mine.labelEvents(scene).size(), 4u);
+  EXPECT_EQ(mine.segments(scene, false)[0].label, 0);
+}
+
+TEST(CatalogLabels, BadLabelsUnknownIdsAndNoNameAreRefusedLeavingTheFileAlone) {
+  TempDir dir;
+  const fs::path file = dir / "catalog.sqlite";
+  Catalog catalog(file);
+  const std::vector<std::int64_t> ids = unlabelledScene(catalog, 2);
+  const LabelEvent e = catalog.setLabel(ids[0], 1, "ana");
+  const std::string before = readBytes(file);
+  EXPECT_THROW(catalog.setLabel(ids[1], 3, "ana"), std::invalid_argument);
+  EXPECT_THROW(catalog.setLabel(ids[1], -1, "ana"), std::invalid_argument);
+  EXPECT_THROW(catalog.setLabel(ids[1] + 1000, 1, "ana"), std::invalid_argument);
+  EXPECT_THROW(catalog.setLabel(ids[1], 1, ""), std::invalid_argument);
+  EXPECT_THROW(catalog.undoLabel(e.id + 1000, "ana"), std::invalid_argument);
+  EXPECT_THROW(catalog.undoLabel(e.id, ""), std::invalid_argument);
+  EXPECT_THROW(catalog.setLabels(catalog.scenes()[0].id, {{ids[1], 1}, {ids[0], 7}}),
+               std::invalid_argument);
+  EXPECT_EQ(readBytes(file), before);
+  EXPECT_EQ(catalog.labelEvents(catalog.scenes()[0].id).size(), 1u);
+}
+
+TEST(CatalogLabels, CountsAndScenesWithAHash) {
+  TempDir dir;
+  Catalog catalog(dir / "catalog.sqlite");
+  const std::vector<std::int64_t> ids = unlabelledScene(catalog, 6);
+  const std::int64_t scene = catalog.scenes()[0].id;
+  LabelCounts counts = catalog.labelCounts(scene);
+  EXPECT_EQ(counts.segments, 6u);
+  EXPECT_EQ(counts.labelled, 0u);
+  catalog.setLabel(ids[0], 1, "ana");
+  catalog.setLabel(ids[1], 1, "ana");
+  catalog.setLabel(ids[2], 0, "ana");
+  catalog.setLabel(ids[3], 2, "ana");
+  catalog.setLabel(ids[4], 2, "ana");
+  catalog.setLabel(ids[4], std::nullopt, "ana");
+  counts = catalog.labelCounts(scene);
+  EXPECT_EQ(counts.segments, 6u);
+  EXPECT_EQ(counts.labelled, 4u);
+  EXPECT_EQ(counts.objects, 2u);
+  EXPECT_EQ(counts.not_objects, 1u);
+  EXPECT_EQ(counts.unsure, 1u);
+  EXPECT_EQ(catalog.labelCounts(scene + 100).segments, 0u);
+  // setLabels counts and records events too.
+  catalog.setLabels(scene, {{ids[5], 0}, {ids[0], 0}}, "bulk");
+  counts = catalog.labelCounts(scene);
+  EXPECT_EQ(counts.objects, 1u);
+  EXPECT_EQ(counts.not_objects, 3u);
+  EXPECT_EQ(catalog.labelEvents(scene).back().by, "bulk");
+  EXPECT_EQ(catalog.labelEvents(scene).back().previous, 1);
+
+  const std::int64_t coarse =
+      catalog.addScene(makeScene("desk", "aa", "coarser"), {makeSegment(1)});
+  catalog.addScene(makeScene("shelf", "bb"), {makeSegment(1)});
+  const std::vector<CatalogScene> same = catalog.scenesWithHash("aa");
+  ASSERT_EQ(same.size(), 2u);
+  EXPECT_EQ(same[0].id, scene);
+  EXPECT_EQ(same[1].id, coarse);
+  EXPECT_EQ(same[1].settings, "coarser");
+  EXPECT_TRUE(catalog.scenesWithHash("cc").empty());
+
+  // A replaced scene's labels and history go with its segments.
+  const std::int64_t replaced = catalog.addScene(makeScene("desk", "aa"), {makeSegment(1)});
+  EXPECT_TRUE(catalog.labelEvents(scene).empty());
+  EXPECT_EQ(catalog.labelCounts(replaced).labelled, 1u);  // makeSegment(1)'s own label
+  EXPECT_EQ(catalog.segments(replaced, false)[0].labelled_by, "objscan");
+  EXPECT_EQ(sqlInteger(dir / "catalog.sqlite", "SELECT count(*) FROM segment_labels"), 3);
+}
+
+/// The schema objscan wrote before labels had who and when (version 1), verbatim.
+constexpr const char* kSchemaVersion1 = R"sql(
+CREATE TABLE scenes (
+  id INTEGER PRIMARY KEY AUTOINCREMENT,
+  name TEXT NOT NULL,
+  content_hash TEXT NOT NULL,
+  settings TEXT NOT NULL,
+  vertex_count INTEGER NOT NULL CHECK (vertex_count >= 0),
+  added TEXT NOT NULL DEFAULT (strftime('%Y-%m-%dT%H:%M:%SZ', 'now')),
+  UNIQUE (content_hash, settings));
+CREATE TABLE segments (
+  id INTEGER PRIMARY KEY AUTOINCREMENT,
+  scene_id INTEGER NOT NULL REFERENCES scenes(id) ON DELETE CASCADE,
+  scale REAL CHECK (scale >= 0),
+  centroid_x REAL, centroid_y REAL, centroid_z REAL,
+  axes BLOB NOT NULL CHECK (length(axes) = 36),
+  eigenvalue_0 REAL, eigenvalue_1 REAL, eigenvalue_2 REAL,
+  extent_0 REAL CHECK (extent_0 >= 0),
+  extent_1 REAL CHECK (extent_1 >= 0),
+  extent_2 REAL CHECK (extent_2 >= 0),
+  compactness REAL, symmetry REAL, smoothness REAL, local_convexity REAL, global_convexity REAL,
+  label INTEGER CHECK (label IN (0, 1)));
+CREATE INDEX segments_by_scene ON segments(scene_id);
+CREATE TABLE segment_vertices (
+  segment_id INTEGER PRIMARY KEY REFERENCES segments(id) ON DELETE CASCADE,
+  vertices BLOB NOT NULL);
+PRAGMA user_version = 1;
+)sql";
+
+/// A version-1 catalog: one scene of three segments labelled 1, 0 and nothing, with vertices.
+void writeVersion1Catalog(const fs::path& file, const std::string& labels = "1, 0, NULL") {
+  std::string rows;
+  const std::string axes = "x'" + std::string(72, '0') + "'";
+  std::size_t start = 0;
+  for (int i = 0; i < 3; ++i) {
+    const std::size_t comma = labels.find(',', start);
+    const std::string label = labels.substr(start, comma - start);
+    start = comma + 1;
+    rows +=
+        "INSERT INTO segments (scene_id, scale, centroid_x, centroid_y, centroid_z, axes, "
+        "eigenvalue_0, eigenvalue_1, eigenvalue_2, extent_0, extent_1, extent_2, compactness, "
+        "symmetry, smoothness, local_convexity, global_convexity, label) VALUES (1, 5, 0, 0, "
+        "0, " +
+        axes + ", 1, 1, 1, 0.1, 0.1, 0.1, 0.5, 0.5, 0.5, 0.5, " + std::to_string(0.1 * i) + ", " +
+        label + ");" +
+        "INSERT INTO segment_vertices VALUES (last_insert_rowid(), x'0100000002000000');";
+  }
+  sql(file, std::string(kSchemaVersion1) +
+                "PRAGMA ignore_check_constraints = 1;"
+                "INSERT INTO scenes (name, content_hash, settings, vertex_count) "
+                "VALUES ('desk.ply', 'aa', 'scales=5..2560', 10);" +
+                rows);
+}
+
+TEST(CatalogLabels, AVersion1FileIsUpgradedKeepingItsLabels) {
+  TempDir dir;
+  const fs::path file = dir / "catalog.sqlite";
+  writeVersion1Catalog(file);
+  {
+    Catalog catalog(file);
+    EXPECT_EQ(sqlInteger(file, "PRAGMA user_version"), 2);
+    const std::vector<CatalogSegment> segments = catalog.segments(1, true);
+    ASSERT_EQ(segments.size(), 3u);
+    EXPECT_EQ(segments[0].label, 1);
+    EXPECT_EQ(segments[1].label, 0);
+    EXPECT_FALSE(segments[2].label.has_value());
+    EXPECT_EQ(segments[0].labelled_by, "objscan (schema 1)");
+    EXPECT_TRUE(isUtcTime(segments[0].labelled_at)) << segments[0].labelled_at;
+    EXPECT_EQ(segments[2].labelled_by, "");
+    EXPECT_EQ(segments[1].vertices, (std::vector<std::int32_t>{1, 2}));
+    EXPECT_DOUBLE_EQ(segments[2].measures.global_convexity, 0.2);
+    const std::vector<LabelEvent> events = catalog.labelEvents(1);
+    ASSERT_EQ(events.size(), 2u);
+    EXPECT_EQ(events[0].segment_id, segments[0].id);
+    EXPECT_EQ(events[0].label, 1);
+    EXPECT_FALSE(events[0].previous.has_value());
+    EXPECT_EQ(events[1].label, 0);
+    EXPECT_EQ(events[1].by, "objscan (schema 1)");
+    // The old column is gone: labels have one home.
+    EXPECT_EQ(sqlInteger(file,
+                         "SELECT count(*) FROM pragma_table_info('segments') "
+                         "WHERE name = 'label'"),
+              0);
+    catalog.setLabel(segments[2].id, 2, "ana");
+  }
+  // Reopened: already version 2, nothing to do.
+  const Catalog reopened(file);
+  EXPECT_EQ(reopened.labelCounts(1).labelled, 3u);
+  EXPECT_EQ(reopened.labelEvents(1).size(), 3u);
+  EXPECT_EQ(sqlText(file, "PRAGMA integrity_check"), "ok");
+}
+
+TEST(CatalogLabels, AVersion1FileThatCannotBeUpgradedIsAnErrorAndLeftAsItWas) {
+  TempDir dir;
+  // A label version 1 never allowed (its CHECK switched off): the upgrade refuses it.
+  const fs::path damaged = dir / "damaged.sqlite";
+  writeVersion1Catalog(damaged, "1, 5, NULL");
+  std::string before = readBytes(damaged);
+  expectInputError([&] { Catalog catalog(damaged); }, damaged, "cannot be upgraded");
+  EXPECT_EQ(readBytes(damaged), before);
+  // A file that cannot be written (here: no byte may be written, as on a full disk).
+  const fs::path full = dir / "full.sqlite";
+  writeVersion1Catalog(full);
+  before = readBytes(full);
+  try {
+    const objscan::testing::FileSizeLimit limit(0);
+    Catalog catalog(full);
+    ADD_FAILURE() << "no error";
+  } catch (const OutputError& e) {
+    const std::string what = e.what();
+    EXPECT_EQ(what.rfind(full.string() + ": ", 0), 0u) << what;
+    EXPECT_NE(what.find("schema version 1"), std::string::npos) << what;
+    EXPECT_NE(what.find("the file is unchanged"), std::string::npos) << what;
+  }
+  EXPECT_EQ(readBytes(full), before);
+  EXPECT_EQ(sqlInteger(full, "PRAGMA user_version"), 1);
+  // And once it can be written, it is upgraded.
+  EXPECT_EQ(Catalog(full).labelCounts(1).objects, 1u);
+}
+
+TEST(CatalogLabels, TwoConnectionsLabellingAtOnceLoseNoEvent) {
+  TempDir dir;
+  const fs::path file = dir / "catalog.sqlite";
+  constexpr int kLabels = 200;
+  std::vector<std::int64_t> ids;
+  std::int64_t scene = 0;
+  {
+    Catalog catalog(file);
+    ids = unlabelledScene(catalog, 20);
+    scene = catalog.scenes()[0].id;
+  }
+  // Two viewers' servers on one file, each labelling the same segments over and over.
+  const auto label = [&](const std::string& who, int value) {
+    Catalog catalog(file);
+    for (int i = 0; i < kLabels; ++i) {
+      catalog.setLabel(ids[static_cast<std::size_t>(i) % ids.size()], value, who);
+    }
+  };
+  std::thread ana(label, "ana", 1), ben(label, "ben", 0);
+  ana.join();
+  ben.join();
+
+  const Catalog catalog(file);
+  const std::vector<LabelEvent> events = catalog.labelEvents(scene);
+  ASSERT_EQ(events.size(), 2u * kLabels);
+  // Each event saw the label the one before it (of its segment) left: no write was lost.
+  std::map<std::int64_t, std::optional<int>> label_of;
+  std::size_t by_ana = 0;
+  for (std::size_t i = 0; i < events.size(); ++i) {
+    if (i > 0) {
+      EXPECT_GT(events[i].id, events[i - 1].id);
+      EXPECT_GE(events[i].at, events[i - 1].at);
+    }
+    EXPECT_EQ(events[i].previous, label_of[events[i].segment_id]) << i;
+    label_of[events[i].segment_id] = events[i].label;
+    by_ana += events[i].by == "ana";
+  }
+  EXPECT_EQ(by_ana, static_cast<std::size_t>(kLabels));
+  for (const CatalogSegment& s : catalog.segments(scene, false)) EXPECT_EQ(s.label, label_of[s.id]);
+  EXPECT_EQ(sqlText(file, "PRAGMA integrity_check"), "ok");
 }
 
 /// FNV-1a, 64 bits, byte by byte: the reference for contentHash().
