@@ -1,0 +1,546 @@
+// objscan view: the viewer's server against the real objscan binary on a real scan of a
+// synthetic scene (view_server_test, label unit, also under the sanitizers): its routes, hostile
+// and malformed requests, bad folders, and labels from two viewers and many threads at once
+// reaching the catalog intact. view_page_test (label live): the page in headless Chromium, driven
+// by real clicks and keys: the canvas draws the scene, a click selects, labels made with the
+// keyboard arrive in the catalog, and train on them gives a model discover accepts.
+
+#include <gtest/gtest.h>
+#include <sqlite3.h>
+
+#include <algorithm>
+#include <atomic>
+#include <csignal>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "background_process.h"
+#include "browser.h"
+#include "cli_expect.h"
+#include "http_client.h"
+#include "objscan/core/atomic_file.h"
+#include "objscan/core/ply_io.h"
+#include "objscan/discovery/catalog.h"
+#include "objscan/discovery/labels.h"
+#include "objscan/discovery/scenes.h"
+#include "test_support.h"
+
+namespace objscan {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using testing::Answer;
+using testing::BackgroundProcess;
+using testing::get;
+using testing::portOf;
+using testing::post;
+using testing::ProcessResult;
+using testing::TempDir;
+
+ProcessResult objscan(std::vector<std::string> args) {
+  args.insert(args.begin(), OBJSCAN_EXE);
+  return testing::runProcess(args);
+}
+
+/// A scan of a synthetic desk (6 objects, 40 frames) into DIR/res, its catalog DIR/cat.sqlite,
+/// and the scene's ground truth DIR/syn/scene_gt.ply. Made once for the whole test program.
+const fs::path& scannedScene() {
+  static TempDir dir;
+  static const bool made = [] {
+    ProcessResult r = objscan({"synth", "--out", (dir / "syn").string(), "--frames", "40",
+                               "--objects", "6", "--seed", "3"});
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    r = objscan({"scan", (dir / "syn").string(), "--out", (dir / "res").string(), "--catalog",
+                 (dir / "cat.sqlite").string()});
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return r.exit_code == 0;
+  }();
+  EXPECT_TRUE(made);
+  return dir.path();
+}
+
+/// A copy of the scanned results and catalog in a fresh folder, so that a test's labels are its
+/// own. The copy's hypotheses.json names the copy's catalog.
+fs::path freshCopy(const TempDir& into) {
+  const fs::path& source = scannedScene();
+  fs::copy(source / "res", into / "res", fs::copy_options::recursive);
+  fs::copy_file(source / "cat.sqlite", into / "cat.sqlite");
+  json doc = json::parse(readWholeFile(into / "res" / "hypotheses.json"));
+  doc["catalog"]["path"] = (into / "cat.sqlite").string();
+  std::ofstream(into / "res" / "hypotheses.json") << doc.dump();
+  return into / "res";
+}
+
+/// `objscan view DIR --serve 127.0.0.1:0` in the background, serving for at most 120 s.
+std::unique_ptr<BackgroundProcess> startView(const fs::path& dir, int* port,
+                                             std::vector<std::string> extra = {}) {
+  std::vector<std::string> args = {OBJSCAN_EXE,   "view",         dir.string(), "--serve",
+                                   "127.0.0.1:0", "--serve-wait", "120",        "--labeller",
+                                   "tester"};
+  args.insert(args.end(), extra.begin(), extra.end());
+  auto view = std::make_unique<BackgroundProcess>(args);
+  *port = portOf(view->waitForLine("viewer", 60));
+  EXPECT_GT(*port, 0) << view->out() << view->err();
+  return view;
+}
+
+[[maybe_unused]] json jsonOf(const Answer& a) { return json::parse(a.body, nullptr, false); }
+
+/// The catalog's labels of every segment of the first scene: id -> label (absent: none).
+std::map<std::int64_t, int> catalogLabels(const fs::path& catalog, std::string* by = nullptr) {
+  discovery::Catalog c(catalog);
+  std::map<std::int64_t, int> out;
+  for (const discovery::CatalogSegment& s : c.segments(c.scenes().at(0).id, false)) {
+    if (s.label) out[s.id] = *s.label;
+    if (s.label && by) *by = s.labelled_by;
+  }
+  return out;
+}
+
+[[maybe_unused]] std::string integrityOf(const fs::path& catalog) {
+  sqlite3* db = nullptr;
+  std::string result;
+  if (sqlite3_open_v2(catalog.c_str(), &db, SQLITE_OPEN_READONLY, nullptr) == SQLITE_OK) {
+    sqlite3_exec(
+        db, "PRAGMA integrity_check",
+        [](void* out, int, char** values, char**) {
+          *static_cast<std::string*>(out) += values[0] ? values[0] : "";
+          return 0;
+        },
+        &result, nullptr);
+  }
+  sqlite3_close(db);
+  return result;
+}
+
+#ifndef OBJSCAN_VIEW_PAGE_TEST
+
+TEST(ViewServer, ServesTheResultsTheMeshAndTheCandidates) {
+  TempDir dir;
+  const fs::path res = freshCopy(dir);
+  int port = 0;
+  auto view = startView(res, &port);
+  ASSERT_GT(port, 0);
+  const json results = jsonOf(get(port, "/api/results"));
+  ASSERT_TRUE(results.is_object());
+  ASSERT_EQ(results["scenes"].size(), 1u);
+  const json& scene = results["scenes"][0];
+  EXPECT_TRUE(scene["labelling"].get<bool>()) << results.dump();
+  EXPECT_FALSE(scene.contains("error"));
+  const json hypotheses = json::parse(readWholeFile(res / "hypotheses.json"))["hypotheses"];
+  ASSERT_EQ(results["hypotheses"].size(), hypotheses.size());
+  EXPECT_EQ(results["hypotheses"][0]["file"], "objects/rank_001.ply");
+  EXPECT_EQ(results["labeller"], "tester");
+
+  // The mesh: the OSVM form with the scan's own vertex and triangle counts (not decimated).
+  const Answer mesh = get(port, "/api/scenes/0/mesh");
+  ASSERT_EQ(mesh.status, 200);
+  ASSERT_GE(mesh.body.size(), 20u);
+  EXPECT_EQ(mesh.body.substr(0, 4), "OSVM");
+  const TriangleMesh scan = readPly(res / "mesh.ply");
+  const auto u32 = [&](std::size_t at) {
+    std::uint32_t v = 0;
+    std::memcpy(&v, mesh.body.data() + at, 4);
+    return v;
+  };
+  EXPECT_EQ(u32(8), scan.positions.size());
+  EXPECT_EQ(u32(12), scan.triangles.size());
+
+  // Hypothesis 1's vertices on the preview are its vertex list (no decimation: the same).
+  const Answer first = get(port, "/api/scenes/0/hypotheses/1/vertices");
+  ASSERT_EQ(first.status, 200);
+  EXPECT_EQ(first.body.size(), 4 * hypotheses[0]["vertices"].size());
+
+  // Every candidate of the catalog, the ranked ones first and marked with their rank.
+  const json segments = jsonOf(get(port, "/api/scenes/0/segments"));
+  discovery::Catalog catalog(dir / "cat.sqlite");
+  const auto rows = catalog.segments(catalog.scenes().at(0).id, false);
+  ASSERT_EQ(segments["segments"].size(), rows.size());
+  EXPECT_EQ(segments["progress"]["segments"], rows.size());
+  EXPECT_EQ(segments["segments"][0]["rank"], 1);
+  std::size_t ranked = 0;
+  for (const json& s : segments["segments"]) ranked += s["rank"].is_null() ? 0 : 1;
+  EXPECT_GT(rows.size(), ranked) << "candidates below the ranking are offered too";
+
+  // The segment on a vertex of hypothesis 1 includes hypothesis 1's segment.
+  std::uint32_t vertex = 0;
+  std::memcpy(&vertex, first.body.data(), 4);
+  const json at = jsonOf(get(port, "/api/scenes/0/at?vertex=" + std::to_string(vertex)));
+  const std::vector<std::int64_t> ids = at["segments"].get<std::vector<std::int64_t>>();
+  EXPECT_NE(std::find(ids.begin(), ids.end(), segments["segments"][0]["id"].get<std::int64_t>()),
+            ids.end());
+
+  // A hypothesis's PLY downloads from the results folder; the page and scripts are served.
+  EXPECT_EQ(get(port, "/results/objects/rank_001.ply").status, 200);
+  EXPECT_EQ(get(port, "/").status, 200);
+  const Answer three = get(port, "/assets/three.min.js");
+  EXPECT_EQ(three.status, 200);
+  EXPECT_NE(three.body.find("REVISION=\"111\""), std::string::npos);
+  EXPECT_EQ(get(port, "/assets/mesh_view.js").status, 200);
+  view->signal(SIGINT);
+  EXPECT_EQ(view->wait(10), 0) << view->err();
+}
+
+TEST(ViewServer, HostileAndMalformedRequestsGet4xxAndTheCatalogStaysWhole) {
+  TempDir dir;
+  const fs::path res = freshCopy(dir);
+  fs::create_symlink("/etc/passwd", res / "passwd");
+  int port = 0;
+  auto view = startView(res, &port);
+  ASSERT_GT(port, 0);
+  const json segments = jsonOf(get(port, "/api/scenes/0/segments"));
+  const std::int64_t id = segments["segments"][0]["id"];
+  const std::string label = R"({"segment": )" + std::to_string(id) + R"(, "label": "object"})";
+
+  // Only its own routes and files inside the folder.
+  for (const char* target :
+       {"/results/../cat.sqlite", "/results/%2e%2e/cat.sqlite", "/results/passwd",
+        "/results/..%2fcat.sqlite", "/results/.lock", "/results/", "/results/objects",
+        "/api/scenes/1/mesh", "/api/scenes/-1/mesh", "/api/scenes/0x0/mesh",
+        "/api/scenes/99999999999999999999/mesh", "/api/scenes/0/segments/1/../../mesh",
+        "/api/scenes/0/hypotheses/0/vertices", "/api/scenes/0/segments/abc/vertices",
+        "/etc/passwd", "/assets/../../etc/passwd"}) {
+    const Answer a = get(port, target);
+    EXPECT_TRUE(a.status >= 400 && a.status < 500) << target << ": " << a.status;
+    EXPECT_EQ(a.body.find("root:"), std::string::npos) << target;
+  }
+  EXPECT_EQ(get(port, "/api/scenes/0/at?vertex=x").status, 400);
+  EXPECT_EQ(get(port, "/api/results", "evil.example:" + std::to_string(port)).status, 403);
+
+  // Labels: JSON only, from this server's own pages, small, well-formed.
+  EXPECT_EQ(post(port, "/api/label", label, "text/plain").status, 415);
+  EXPECT_EQ(post(port, "/api/label", label, "").status, 415);
+  EXPECT_EQ(post(port, "/api/label", label, "application/json", "Origin: http://evil.example\r\n")
+                .status,
+            403);
+  EXPECT_EQ(post(port, "/api/label", std::string(5000, '{')).status, 413);
+  EXPECT_EQ(post(port, "/api/label", "{\"segment\": ").status, 400);
+  EXPECT_EQ(post(port, "/api/label", "[1, 2]").status, 400);
+  EXPECT_EQ(post(port, "/api/label", R"({"segment": "1", "label": "object"})").status, 400);
+  EXPECT_EQ(post(port, "/api/label", R"({"segment": 1e3, "label": "object"})").status, 400);
+  EXPECT_EQ(post(port, "/api/label",
+                 R"({"segment": )" + std::to_string(id) + R"(, "label": "maybe"})")
+                .status,
+            400);
+  EXPECT_EQ(post(port, "/api/label",
+                 R"({"segment": )" + std::to_string(id) + R"(, "label": "object", "by": "a\u0007b"})")
+                .status,
+            400);
+  EXPECT_EQ(post(port, "/api/label", R"({"segment": 987654321, "label": "object"})").status, 404);
+  EXPECT_EQ(post(port, "/api/undo", R"({"event": 987654321})").status, 404);
+  EXPECT_EQ(post(port, "/api/state", "{}").status, 405);
+  EXPECT_EQ(testing::askRaw(port, "PUT /api/label HTTP/1.1\r\nHost: 127.0.0.1:" +
+                                      std::to_string(port) + "\r\nContent-Length: 0\r\n\r\n")
+                .status,
+            405);
+  // A body shorter than announced: refused, nothing stored.
+  EXPECT_GE(testing::askRaw(port, "POST /api/label HTTP/1.1\r\nHost: 127.0.0.1:" +
+                                      std::to_string(port) +
+                                      "\r\nContent-Type: application/json\r\nContent-Length: 90"
+                                      "\r\n\r\n{\"segment\": 1")
+                .status,
+            400);
+  EXPECT_TRUE(catalogLabels(dir / "cat.sqlite").empty()) << "no refused request stored a label";
+
+  // A good one is stored, with who and when.
+  const Answer stored = post(port, "/api/label", label);
+  ASSERT_EQ(stored.status, 200) << stored.body;
+  EXPECT_EQ(jsonOf(stored)["by"], "tester");
+  EXPECT_EQ(jsonOf(stored)["progress"]["objects"], 1);
+  std::string by;
+  EXPECT_EQ(catalogLabels(dir / "cat.sqlite", &by), (std::map<std::int64_t, int>{{id, 1}}));
+  EXPECT_EQ(by, "tester");
+  EXPECT_EQ(integrityOf(dir / "cat.sqlite"), "ok");
+  view->signal(SIGINT);
+  EXPECT_EQ(view->wait(10), 0);
+}
+
+TEST(ViewServer, UndoPutsTheLabelBackAndRefusesWhenAnotherTabChangedIt) {
+  TempDir dir;
+  const fs::path res = freshCopy(dir);
+  int port = 0;
+  auto view = startView(res, &port);
+  ASSERT_GT(port, 0);
+  const json segments = jsonOf(get(port, "/api/scenes/0/segments"));
+  const std::string id = std::to_string(segments["segments"][1]["id"].get<std::int64_t>());
+  const json first = jsonOf(post(port, "/api/label", R"({"segment": )" + id + R"(, "label": "not_object"})"));
+  const json second = jsonOf(post(port, "/api/label", R"({"segment": )" + id + R"(, "label": "unsure", "by": "other tab"})"));
+  ASSERT_TRUE(first.contains("event") && second.contains("event"));
+  EXPECT_EQ(second["previous"], "not_object");
+  // The first tab's undo comes too late: the other tab has changed the label since.
+  const Answer late = post(port, "/api/undo", R"({"event": )" + first["event"].dump() + "}");
+  EXPECT_EQ(late.status, 409) << late.body;
+  // The other tab's own undo goes back to the first label.
+  const Answer undone = post(port, "/api/undo", R"({"event": )" + second["event"].dump() + "}");
+  ASSERT_EQ(undone.status, 200) << undone.body;
+  EXPECT_EQ(jsonOf(undone)["label"], "not_object");
+  EXPECT_EQ(catalogLabels(dir / "cat.sqlite").at(std::stoll(id)), 0);
+  // Cleared with null; the labels route shows what the catalog holds.
+  ASSERT_EQ(post(port, "/api/label", R"({"segment": )" + id + R"(, "label": null})").status, 200);
+  const json labels = jsonOf(get(port, "/api/scenes/0/labels"));
+  EXPECT_EQ(labels["progress"]["labelled"], 0);
+  EXPECT_TRUE(catalogLabels(dir / "cat.sqlite").empty());
+  view->signal(SIGINT);
+  EXPECT_EQ(view->wait(10), 0);
+}
+
+TEST(ViewServer, TwoViewersAndManyTabsLabellingAtOnceLoseNothing) {
+  TempDir dir;
+  const fs::path res = freshCopy(dir);
+  int port_a = 0, port_b = 0;
+  auto a = startView(res, &port_a);
+  auto b = startView(res, &port_b);
+  ASSERT_GT(port_a, 0);
+  ASSERT_GT(port_b, 0);
+  const json segments = jsonOf(get(port_a, "/api/scenes/0/segments"))["segments"];
+  ASSERT_GE(segments.size(), 8u);
+  // Four tabs (two on each viewer process) label the same 8 segments over and over.
+  std::atomic<int> ok{0}, failed{0};
+  std::vector<std::thread> tabs;
+  for (int t = 0; t < 4; ++t) {
+    tabs.emplace_back([&, t] {
+      const int port = t % 2 == 0 ? port_a : port_b;
+      for (int i = 0; i < 40; ++i) {
+        const std::int64_t id = segments[static_cast<std::size_t>((i + t) % 8)]["id"];
+        const char* label = (i + t) % 3 == 0 ? "object" : (i + t) % 3 == 1 ? "not_object" : "unsure";
+        const Answer r = post(port, "/api/label",
+                              R"({"segment": )" + std::to_string(id) + R"(, "label": ")" + label +
+                                  R"(", "by": "tab )" + std::to_string(t) + "\"}");
+        (r.status == 200 ? ok : failed)++;
+      }
+    });
+  }
+  for (std::thread& t : tabs) t.join();
+  EXPECT_EQ(ok.load(), 160);
+  EXPECT_EQ(failed.load(), 0);
+  EXPECT_EQ(integrityOf(dir / "cat.sqlite"), "ok");
+  discovery::Catalog catalog(dir / "cat.sqlite");
+  const std::int64_t scene = catalog.scenes().at(0).id;
+  const std::vector<discovery::LabelEvent> events = catalog.labelEvents(scene);
+  EXPECT_EQ(events.size(), 160u) << "every label is one event";
+  // Each segment's label is its last event's, and each event's "previous" is the label the one
+  // before it on that segment left.
+  std::map<std::int64_t, std::optional<int>> last;
+  for (const discovery::LabelEvent& e : events) {
+    EXPECT_EQ(e.previous, last[e.segment_id]) << "event " << e.id;
+    last[e.segment_id] = e.label;
+  }
+  const std::map<std::int64_t, int> labels = catalogLabels(dir / "cat.sqlite");
+  for (const auto& [segment, label] : last) EXPECT_EQ(labels.at(segment), label.value());
+  EXPECT_EQ(catalog.labelCounts(scene).labelled, 8u);
+  a->signal(SIGINT);
+  b->signal(SIGINT);
+  EXPECT_EQ(a->wait(10), 0);
+  EXPECT_EQ(b->wait(10), 0);
+}
+
+TEST(ViewServer, FoldersWithoutResultsOrWithDamagedFilesSayWhat) {
+  TempDir dir;
+  fs::create_directories(dir / "empty");
+  testing::expectOneErrorLine(objscan({"view", (dir / "empty").string(), "--serve", "0"}), 2,
+                              "hypotheses.json: missing");
+  testing::expectOneErrorLine(objscan({"view", (dir / "nowhere").string(), "--serve", "0"}), 2,
+                              "nowhere");
+  const fs::path res = freshCopy(dir);
+  testing::expectOneErrorLine(objscan({"view", res.string(), "--serve", "70000"}), 2,
+                              "the port must be a number");
+  // A cut hypotheses.json: one error line naming it.
+  fs::copy(res, dir / "cut", fs::copy_options::recursive);
+  const std::string text = readWholeFile(res / "hypotheses.json");
+  testing::writeBytes(dir / "cut" / "hypotheses.json", text.substr(0, text.size() / 2));
+  testing::expectOneErrorLine(objscan({"view", (dir / "cut").string(), "--serve", "0"}), 2,
+                              "hypotheses.json");
+  // A damaged mesh: the viewer still starts, says so on the terminal and in the page's data.
+  const std::string mesh = readWholeFile(res / "mesh.ply");
+  testing::writeBytes(res / "mesh.ply", mesh.substr(0, mesh.size() / 3));
+  int port = 0;
+  auto view = startView(res, &port);
+  ASSERT_GT(port, 0);
+  const json results = jsonOf(get(port, "/api/results"));
+  ASSERT_TRUE(results["scenes"][0].contains("error")) << results.dump();
+  EXPECT_NE(results["scenes"][0]["error"].get<std::string>().find("mesh.ply"), std::string::npos);
+  EXPECT_EQ(get(port, "/api/scenes/0/mesh").status, 404);
+  view->signal(SIGINT);
+  EXPECT_EQ(view->wait(10), 0);
+  EXPECT_NE(view->err().find("cannot be shown"), std::string::npos) << view->err();
+}
+
+#else  // OBJSCAN_VIEW_PAGE_TEST
+
+/// The page's pixels: how many differ from the empty background, and how many are the
+/// highlight's yellow.
+struct CanvasPixels {
+  int width = 0, height = 0, drawn = 0, yellow = 0;
+};
+
+CanvasPixels canvasPixels(testing::ChromiumPage& page) {
+  const json r = page.evaluate(R"((function () {
+    var c = document.querySelector('#view canvas');
+    if (!c) return null;
+    var t = document.createElement('canvas');
+    t.width = c.width; t.height = c.height;
+    var g = t.getContext('2d');
+    g.drawImage(c, 0, 0);
+    var d = g.getImageData(0, 0, t.width, t.height).data, drawn = 0, yellow = 0;
+    for (var i = 0; i < d.length; i += 4) {
+      if (Math.abs(d[i] - 244) + Math.abs(d[i + 1] - 245) + Math.abs(d[i + 2] - 247) > 24) ++drawn;
+      if (d[i] > 150 && d[i + 1] > 110 && d[i + 2] < 90 && d[i] - d[i + 2] > 110) ++yellow;
+    }
+    return {width: t.width, height: t.height, drawn: drawn, yellow: yellow};
+  })())");
+  CanvasPixels p;
+  if (!r.is_object()) return p;
+  p.width = r["width"];
+  p.height = r["height"];
+  p.drawn = r["drawn"];
+  p.yellow = r["yellow"];
+  return p;
+}
+
+/// The centre of an element, in page coordinates.
+std::pair<double, double> centreOf(testing::ChromiumPage& page, const std::string& selector) {
+  const json r = page.evaluate("(function () { var e = document.querySelector('" + selector +
+                               "'); if (!e) return null; e.scrollIntoView({block: 'center'});"
+                               " var b = e.getBoundingClientRect();"
+                               " return [b.left + b.width / 2, b.top + b.height / 2]; })()");
+  EXPECT_TRUE(r.is_array()) << selector;
+  return r.is_array() ? std::make_pair(r[0].get<double>(), r[1].get<double>())
+                      : std::make_pair(0.0, 0.0);
+}
+
+TEST(ViewPage, DrawsSelectsAndLabelsInChromiumAndTrainUsesTheLabels) {
+  TempDir dir;
+  const fs::path res = freshCopy(dir);
+  int port = 0;
+  auto view = startView(res, &port);
+  ASSERT_GT(port, 0);
+  testing::ChromiumPage page;
+  ASSERT_TRUE(page.ok());
+  page.navigate("http://127.0.0.1:" + std::to_string(port) + "/");
+  ASSERT_TRUE(page.waitFor("document.body.getAttribute('data-state') === 'ready'", 60))
+      << page.evaluate("document.body.outerHTML").dump() << page.console();
+
+  // The canvas shows the scene: most of it is mesh, not background.
+  const CanvasPixels shown = canvasPixels(page);
+  ASSERT_GT(shown.width, 400);
+  EXPECT_GT(shown.drawn, shown.width * shown.height / 5) << "the canvas is (nearly) blank";
+  EXPECT_EQ(shown.yellow, 0) << "nothing is selected yet";
+
+  // A click on a row of the ranking selects that hypothesis: row, details, download, highlight.
+  auto [rx, ry] = centreOf(page, "#ranking tr[data-rank=\"2\"]");
+  page.click(rx, ry);
+  ASSERT_TRUE(page.waitFor("document.body.getAttribute('data-selected') === 'rank:2'", 10));
+  EXPECT_EQ(page.evaluate("document.querySelector('#ranking tr.selected').getAttribute('data-rank')"),
+            "2");
+  EXPECT_EQ(page.evaluate("document.getElementById('download').getAttribute('href')"),
+            "/results/objects/rank_002.ply");
+  ASSERT_TRUE(page.waitFor("document.getElementById('view').getAttribute('data-rendered') > 2", 10));
+  page.evaluate("new Promise(function (r) { requestAnimationFrame(function () { r(1); }); })");
+  EXPECT_GT(canvasPixels(page).yellow, 50) << "the selected hypothesis is not highlighted";
+
+  // A click on the mesh where hypothesis 1 is drawn selects hypothesis 1: the point is found by
+  // projecting its vertices and checking with the page's own picking, then clicked for real.
+  const json point = page.evaluate(R"((function () {
+    var v = state.view, m = v.mesh, box = v.renderer.domElement.getBoundingClientRect();
+    for (var i = 0; i < m.vertices; i += 7) {
+      if (m.ranks[i] !== 1) continue;
+      var p = new THREE.Vector3(m.positions[3 * i], m.positions[3 * i + 1], m.positions[3 * i + 2]);
+      p.project(v.camera);
+      var x = box.left + (p.x + 1) / 2 * box.width, y = box.top + (1 - p.y) / 2 * box.height;
+      if (x < box.left + 2 || y < box.top + 2 || x > box.right - 2 || y > box.bottom - 2) continue;
+      var hit = v.pick(x, y);
+      if (hit >= 0 && m.ranks[hit] === 1) return [x, y];
+    }
+    return null;
+  })())");
+  ASSERT_TRUE(point.is_array()) << "hypothesis 1 is nowhere visible";
+  page.click(point[0].get<double>(), point[1].get<double>());
+  EXPECT_TRUE(page.waitFor("document.body.getAttribute('data-selected') === 'rank:1'", 10))
+      << page.evaluate("document.body.getAttribute('data-selected')").dump();
+
+  // Labelling with the keyboard, as the paper's annotate tool: each candidate judged against the
+  // ground truth (object at IoU >= 0.5 with a true object, not one below 0.2, unsure between),
+  // until at least six of each are labelled.
+  const fs::path catalog_path = dir / "cat.sqlite";
+  std::map<std::int64_t, double> best_iou;
+  {
+    discovery::Catalog catalog(catalog_path);
+    const TriangleMesh mesh = readPly(res / "mesh.ply");
+    const discovery::GroundTruthObjects truth(
+        discovery::labelsFromTruthMesh(scannedScene() / "syn" / "scene_gt.ply", mesh));
+    for (const discovery::CatalogSegment& s : catalog.segments(catalog.scenes().at(0).id, true)) {
+      best_iou[s.id] = truth.bestMatch(s.vertices).iou;
+    }
+  }
+  page.key("l");
+  ASSERT_TRUE(page.waitFor("state.mode === 'label' && state.current === 0", 10));
+  std::map<std::int64_t, int> pressed;  // segment -> label typed
+  int objects = 0, others = 0, labelled = 0;
+  for (int step = 0; step < static_cast<int>(best_iou.size()) && (objects < 6 || others < 6);
+       ++step) {
+    const std::int64_t id = page.evaluate("state.segments[state.current].id").get<std::int64_t>();
+    const double iou = best_iou.at(id);
+    const bool object = iou >= 0.5, other = iou < 0.2;
+    if ((object && objects >= 6) || (other && others >= 6)) {
+      page.key("j");
+      ASSERT_TRUE(page.waitFor("state.segments[state.current].id !== " + std::to_string(id), 10));
+      continue;
+    }
+    page.key(object ? "y" : other ? "n" : "u");
+    ++labelled;
+    ASSERT_TRUE(page.waitFor("document.body.getAttribute('data-labelled') === '" +
+                                 std::to_string(labelled) + "'",
+                             10))
+        << "label " << labelled << " did not arrive; " << page.console();
+    pressed[id] = object ? 1 : other ? 0 : 2;
+    objects += object;
+    others += other;
+  }
+  ASSERT_GE(objects, 6) << "the scene has too few object candidates for this test";
+  ASSERT_GE(others, 6);
+  std::string by;
+  EXPECT_EQ(catalogLabels(catalog_path, &by), pressed) << "the catalog holds what was typed";
+  EXPECT_EQ(by, "tester");
+  EXPECT_EQ(page.evaluate("document.getElementById('progress').textContent"),
+            std::to_string(labelled) + " / " + std::to_string(best_iou.size()) + " labelled");
+
+  // z undoes the last label (the catalog forgets it), and it is made again.
+  const std::int64_t last = pressed.rbegin()->first;
+  page.key("z");
+  ASSERT_TRUE(page.waitFor("document.body.getAttribute('data-labelled') === '" +
+                               std::to_string(labelled - 1) + "'",
+                           10));
+  EXPECT_EQ(catalogLabels(catalog_path).count(last), 0u);
+  page.key(pressed[last] == 1 ? "y" : pressed[last] == 0 ? "n" : "u");
+  ASSERT_TRUE(page.waitFor("document.body.getAttribute('data-labelled') === '" +
+                               std::to_string(labelled) + "'",
+                           10));
+  EXPECT_EQ(catalogLabels(catalog_path), pressed);
+
+  // train on the catalog's labels, then discover with the model.
+  ProcessResult r = objscan({"train", "--catalog", catalog_path.string(), "--model",
+                             (dir / "model.yml").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  r = objscan({"discover", (res / "mesh.ply").string(), "--catalog", catalog_path.string(),
+               "--model", (dir / "model.yml").string(), "--out", (dir / "ranked").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  const json ranked = json::parse(readWholeFile(dir / "ranked" / "hypotheses.json"));
+  EXPECT_EQ(ranked["scoring"]["kind"], "rbf_svm");
+  EXPECT_FALSE(ranked["hypotheses"].empty());
+  view->signal(SIGINT);
+  EXPECT_EQ(view->wait(10), 0);
+}
+
+#endif  // OBJSCAN_VIEW_PAGE_TEST
+
+}  // namespace
+}  // namespace objscan
