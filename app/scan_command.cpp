@@ -172,13 +172,14 @@ class ScanRun {
     return true;
   }
 
-  fs::path reportAndTimings() {
+  /// `mesh`: the scene mesh, for the report's 3-D view.
+  fs::path reportAndTimings(const TriangleMesh* mesh) {
     log::info("scan [4/4] writing the report");
     if (live_) live_->stage("writing the report");
     const auto report_start = SteadyClock::now();
     finishTimings();  // the report shows the timings up to it
     report::writeSettings(out_ / report::kSettingsFile, *results_.settings);
-    const fs::path report = report::writeReport(results_, out_);
+    const fs::path report = report::writeReport(results_, out_, mesh);
     stage("report", secondsSince(report_start));
     finishTimings();
     report::writeTimings(out_ / report::kTimingsFile, timings());
@@ -281,7 +282,7 @@ int runScan(ScanCommandOptions options) {
     const discovery::SceneDiscovery found = run.discover(std::move(fused.mesh), truth, library);
     if (StopSignals::stopRequested()) return stop({"renders/", "report.html"});
     if (!run.pictures(found.scenes.at(0).mesh)) return stop({"renders/", "report.html"});
-    const fs::path report = run.reportAndTimings();
+    const fs::path report = run.reportAndTimings(&found.scenes.at(0).mesh);
     std::printf("report        %s\n", report.c_str());
     // A sensor lost mid-capture still gives every output, from the frames before it, and exit 1.
     const int code = reportSensorLoss(fused.stats);

@@ -1,5 +1,7 @@
 #include "objscan/report/report.h"
 
+#include "objscan/report/mesh_view.h"
+
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -368,6 +370,7 @@ td.barcell { width: 240px; }
 .evaluation { display: flex; flex-wrap: wrap; gap: 2rem; align-items: flex-start; }
 svg.pr { background: #fff; border: 1px solid #d8dee4; }
 svg.pr text { font: 12px system-ui, sans-serif; fill: #1f2328; }
+#mesh-view { height: 480px; border: 1px solid #d0d7de; border-radius: 6px; overflow: hidden; }
 footer { margin-top: 3rem; color: #8c959f; font-size: .85rem; }
 )css";
 
@@ -395,6 +398,35 @@ constexpr std::string_view kScript = R"js(
   });
 })();
 )js";
+
+/// The inline 3-D view: started once the page has loaded; a browser without WebGL gets a line
+/// saying so instead (the rest of the page does not need it). Served by objscan view (under
+/// /results/), it links the viewer.
+constexpr std::string_view kView3dScript = R"js(
+(function () {
+  'use strict';
+  var box = document.getElementById('mesh-view');
+  try {
+    var data = document.getElementById('mesh-data').textContent;
+    var mesh = ObjscanMeshView.decode(ObjscanMeshView.base64ToBuffer(data.trim()));
+    new ObjscanMeshView.MeshView(box, mesh);
+    box.setAttribute('data-state', 'ready');
+  } catch (e) {
+    box.textContent = 'The 3-D view could not start here (' + e.message + ').';
+    box.setAttribute('data-state', 'unavailable');
+    box.style.height = 'auto';
+  }
+  if (/^https?:$/.test(location.protocol) && location.pathname.indexOf('/results/') === 0) {
+    var a = document.createElement('a');
+    a.href = '/';
+    a.textContent = ' (open it)';
+    document.getElementById('viewer-link').appendChild(a);
+  }
+})();
+)js";
+
+/// The largest mesh the report inlines as it is; a larger one is inlined decimated to this.
+constexpr std::size_t kInlineTriangles = 100000;
 
 /// The precision-recall curve as an inline SVG: recall on x, precision on y, both 0..1.
 std::string precisionRecallSvg(const EvaluationView& e) {
@@ -569,6 +601,7 @@ std::string header(const Inputs& in) {
   };
   link(in.overview.has_value(), "overview", "Overview");
   link(in.contact_sheet.has_value(), "contact-sheet", "Contact sheet");
+  link(true, "view3d", "3-D view");
   link(true, "hypotheses", "Hypotheses");
   link(in.evaluation.has_value(), "evaluation", "Evaluation");
   link(timings.has_value(), "timings", "Timings");
@@ -787,14 +820,55 @@ std::string settingsSection(const Settings& st) {
          "</section>\n";
 }
 
+/// The scene in 3-D, inline (three.js and the mesh, base64): turned with the mouse, hypotheses
+/// in their rank colours, at most kInlineTriangles triangles (decimated past that). Always the
+/// command that opens the full viewer, and a link to it when the page is served by it.
+std::string view3dSection(const Hypotheses& hypotheses, const TriangleMesh* mesh,
+                          const fs::path& dir) {
+  std::string html = "<section id=\"view3d\">\n<h2>3-D view</h2>\n";
+  const std::string command = "<code>objscan view " + escape(dir.string()) + "</code>";
+  std::string note;
+  std::optional<ViewMesh> made;
+  if (mesh && !mesh->triangles.empty() && !hypotheses.scenes.empty()) {
+    try {
+      made = viewMesh(*mesh, hypotheses.hypotheses, hypotheses.scenes[0].mesh, kInlineTriangles);
+    } catch (const std::invalid_argument& e) {  // hypotheses of another mesh: no view, a note
+      note = std::string("No inline view: ") + e.what() + ". ";
+    }
+  }
+  if (made) {
+    const ViewMesh& view = *made;
+    html += "<div id=\"mesh-view\" data-state=\"loading\"></div>\n";
+    note = "Drag to turn, right-drag to pan, wheel to zoom; the hypotheses in their rank colours";
+    if (view.preview.mesh.triangles.size() < mesh->triangles.size()) {
+      note += "; shown with " + std::to_string(view.preview.mesh.triangles.size()) + " of its " +
+              std::to_string(mesh->triangles.size()) + " triangles";
+    }
+    note += ". ";
+    html += "<script>" + std::string(threeJs()) + "</script>\n<script>" +
+            std::string(orbitControlsJs()) + "</script>\n<script>" + std::string(meshViewJs()) +
+            "</script>\n<script type=\"application/octet-stream\" id=\"mesh-data\">" +
+            base64(meshViewPayload(view)) + "</script>\n<script>" + std::string(kView3dScript) +
+            "</script>\n";
+  } else if (note.empty()) {
+    note = "No scene mesh was at hand for an inline view. ";
+  }
+  html += "<p class=\"note\">" + note + "The full viewer, with object details and labelling: " +
+          command + "<span id=\"viewer-link\"></span>.</p>\n</section>\n";
+  return html;
+}
+
 }  // namespace
 
-fs::path writeReport(const ScanResults& results, const fs::path& dir) {
+fs::path writeReport(const ScanResults& results, const fs::path& dir,
+                     const TriangleMesh* scene_mesh) {
   const Inputs in = inputsOf(results, dir);
   std::string html = pageHead(in);
   html += header(in);
   html += interruptedNotice(in);
   html += pictures(in);
+  if (!scene_mesh && results.mesh) scene_mesh = &*results.mesh;
+  html += view3dSection(*results.hypotheses, scene_mesh, dir);
   html += hypothesesSection(in);
   if (in.evaluation) html += evaluationSection(*in.evaluation);
   if (in.timings) html += timingsSection(*in.timings);

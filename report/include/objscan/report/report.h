@@ -21,6 +21,12 @@ namespace objscan::report {
 /// Throws InputError naming DIR/hypotheses.json when the results hold no hypotheses; OutputError
 /// when report.html cannot be written (written atomically: a failure leaves any earlier report as
 /// it was).
-std::filesystem::path writeReport(const ScanResults& results, const std::filesystem::path& dir);
+///
+/// It also embeds the scene in 3-D (mesh_view.h: three.js and the mesh inline, decimated to at
+/// most 100,000 triangles) and names `objscan view DIR`. `scene_mesh` is the mesh hypotheses.json's
+/// first scene was cut from, when the caller has it in memory; results.mesh when null; without
+/// either the page has no 3-D view.
+std::filesystem::path writeReport(const ScanResults& results, const std::filesystem::path& dir,
+                                  const TriangleMesh* scene_mesh = nullptr);
 
 }  // namespace objscan::report
