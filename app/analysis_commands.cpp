@@ -95,7 +95,20 @@ Command addTrainCommand(CLI::App& app) {
   TrainCommandOptions& train_options = *options;
   CLI::App* train = app.add_subcommand(
       "train", "Fit a classifier that scores hypotheses (for objscan discover --model)");
+  train->footer(
+      "Examples:\n"
+      "  objscan train scenes/learn*.pcd --model out/model.yaml   (ground truth of the scenes)\n"
+      "  objscan train --catalog C --model out/model.yaml   (the labels given in objscan view)");
   addLabelledScenes(train, train_options.scenes, train_options.catalog);
+  // Without scenes, train uses the catalog's labels (people's, from objscan view).
+  train->get_option("scenes")->required(false)->description(
+      "Labelled scenes: folders with scene_gt.ply and fused/mesh.ply "
+      "(scripts/make_discovery_scenes), meshes whose vertices carry object_id, or PCD clouds with "
+      "a label field; none: the labels given in objscan view to the segments of --catalog");
+  train->get_option("--catalog")
+      ->description(
+          "Catalog to reuse and extend (default: none); without scenes, the catalog whose labels "
+          "(given in objscan view) to train on");
   train->add_option("--model", train_options.model, "Model file to write (YAML)")->required();
   train
       ->add_option("--kind", train_options.kind,

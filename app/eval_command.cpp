@@ -323,8 +323,57 @@ int runEval(const EvalCommandOptions& options) {
   return kExitSuccess;
 }
 
+namespace {
+
+/// `objscan train --catalog C` without scenes: the labels people gave in objscan view.
+int trainOnCatalogLabels(const TrainCommandOptions& options, discovery::ScoreKind kind) {
+  if (!options.catalog) {
+    throw std::invalid_argument(
+        "objscan train needs labelled scenes, or --catalog C to train on the labels given in "
+        "objscan view (run 'objscan train --help')");
+  }
+  const fs::path& catalog = *options.catalog;
+  const discovery::CatalogTrainingSet set = discovery::catalogTrainingSet(catalog, options.config);
+  const auto objects =
+      static_cast<std::size_t>(std::count(set.labels.begin(), set.labels.end(), 1));
+  const std::size_t not_objects = set.labels.size() - objects;
+  discovery::TrainConfig config;
+  config.seed = options.seed;
+  const auto needed = static_cast<std::size_t>(config.folds);
+  if (objects < needed || not_objects < needed) {
+    throw std::invalid_argument(
+        catalog.string() + ": too few labels to train on: " + std::to_string(objects) +
+        " segments labelled object and " + std::to_string(not_objects) + " not an object (" +
+        std::to_string(set.unsure) + " unsure and " + std::to_string(set.other_settings) +
+        " of scenes measured with other settings left out); at least " + std::to_string(needed) +
+        " of each are needed: label more in objscan view");
+  }
+  std::printf(
+      "labels        %zu segments of %zu scenes in %s: %zu objects, %zu not objects; left out: "
+      "%zu unsure, %zu of scenes measured with other settings\n",
+      set.labels.size(), set.scenes, catalog.c_str(), objects, not_objects, set.unsure,
+      set.other_settings);
+  std::vector<discovery::MeasureRow> rows;
+  for (const discovery::ShapeMeasures& m : set.measures)
+    rows.push_back(set.normaliser.normalise(m));
+  const discovery::ObjectnessModel model = discovery::ObjectnessModel::train(
+      kind, set.normaliser, rows, set.labels, discovery::kAllMeasures, config);
+  model.save(options.model);
+  std::printf("trained       %s on %zu labelled segments\n", discovery::toString(kind),
+              set.labels.size());
+  if (!model.parameters().empty()) {
+    std::printf("chosen        %s (5-fold cross-validated AP %.3f)\n", model.parameters().c_str(),
+                model.crossValidatedAp());
+  }
+  std::printf("written       %s\n", options.model.c_str());
+  return kExitSuccess;
+}
+
+}  // namespace
+
 int runTrain(const TrainCommandOptions& options) {
   const discovery::ScoreKind kind = discovery::scoreKindFromString(options.kind);
+  if (options.scenes.empty()) return trainOnCatalogLabels(options, kind);
   const SceneDiscovery set =
       labelledScenes(options.scenes, options.config, options.catalog, options.reading);
   const LabelledSegments segs = discovery::labelledSegments(set, options.config.max_iou);

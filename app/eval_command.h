@@ -34,6 +34,7 @@ struct EvalCommandOptions {
 int runEval(const EvalCommandOptions& options);
 
 struct TrainCommandOptions {
+  /// Labelled scenes (ground truth); none: the catalog's labels people gave in objscan view.
   std::vector<std::filesystem::path> scenes;
   std::filesystem::path model;  ///< the file to write
   std::string kind = "rbf_svm";
@@ -45,7 +46,9 @@ struct TrainCommandOptions {
 };
 
 /// `objscan train`: fits a classifier to labelled scenes' segments (grid search, 5-fold
-/// cross-validation) and writes the model file that `objscan discover --model` reads.
+/// cross-validation) and writes the model file that `objscan discover --model` reads. Without
+/// scenes, to the segments people labelled in the catalog (discovery::catalogTrainingSet); too
+/// few of them is std::invalid_argument, saying how many there are (exit code 2).
 int runTrain(const TrainCommandOptions& options);
 
 }  // namespace objscan::app

@@ -170,10 +170,28 @@ void findOrRecall(DiscoveredScene& scene, const std::string& content_hash,
   }
 }
 
-/// Recurrence against every other scene known (the whole catalog's with these settings, or this
-/// run's scenes), then the normaliser.
-void addRecurrenceAndNormalise(SceneDiscovery& run, Catalog* catalog, const std::string& settings,
-                               const DiscoveryConfig& config) {
+/// One scene whose candidates get their recurrence: its id among the recurrence entries (the
+/// catalog's, or its index in a run without one) and its candidates.
+struct RecurrenceScene {
+  std::int64_t scene_id = 0;
+  SceneCandidates* candidates = nullptr;
+};
+
+/// What addRecurrenceAndNormalise found.
+struct Normalisation {
+  MeasureNormaliser normaliser;
+  /// The catalog's scenes and segments measured with these settings; 0 without a catalog.
+  std::size_t catalog_scenes = 0, catalog_segments = 0;
+};
+
+/// Recurrence of each scene's candidates against every other scene known (the whole catalog's
+/// with these settings, or these scenes), then the normaliser: the five measures' over the
+/// catalog's segments (with a catalog) or these candidates, recurrence's over these candidates.
+/// The one path of discoverScenes and catalogTrainingSet.
+Normalisation addRecurrenceAndNormalise(const std::vector<RecurrenceScene>& scenes,
+                                        Catalog* catalog, const std::string& settings,
+                                        const DiscoveryConfig& config) {
+  Normalisation out;
   std::vector<RecurrenceEntry> entries;
   if (catalog) {
     // Only scenes measured with these settings: another run of the same mesh with other
@@ -182,21 +200,21 @@ void addRecurrenceAndNormalise(SceneDiscovery& run, Catalog* catalog, const std:
     for (const CatalogScene& c : catalog->scenes()) {
       if (c.settings == settings) comparable.insert(c.id);
     }
-    run.catalog_scenes = comparable.size();
+    out.catalog_scenes = comparable.size();
     for (RecurrenceEntry& e : catalog->recurrenceEntries()) {
       if (comparable.count(e.scene_id)) entries.push_back(std::move(e));
     }
   } else {
-    for (const DiscoveredScene& s : run.scenes) {
-      for (std::size_t i = 0; i < s.candidates.segments.size(); ++i) {
-        entries.push_back({s.scene_id, s.candidates.segments[i].extents,
-                           recurrenceMeasures(s.candidates.measures[i])});
+    for (const RecurrenceScene& s : scenes) {
+      for (std::size_t i = 0; i < s.candidates->segments.size(); ++i) {
+        entries.push_back({s.scene_id, s.candidates->segments[i].extents,
+                           recurrenceMeasures(s.candidates->measures[i])});
       }
     }
   }
   std::vector<ShapeMeasures> pool;
   if (catalog) {
-    run.catalog_segments = entries.size();
+    out.catalog_segments = entries.size();
     for (const RecurrenceEntry& e : entries) {
       ShapeMeasures m;
       m.compactness = e.measures[0];
@@ -209,14 +227,15 @@ void addRecurrenceAndNormalise(SceneDiscovery& run, Catalog* catalog, const std:
   }
   const RecurrenceIndex index(std::move(entries));
   std::vector<ShapeMeasures> measured;
-  for (DiscoveredScene& s : run.scenes) {
-    addRecurrence(s.candidates, index, s.scene_id, config);
-    measured.insert(measured.end(), s.candidates.measures.begin(), s.candidates.measures.end());
+  for (const RecurrenceScene& s : scenes) {
+    addRecurrence(*s.candidates, index, s.scene_id, config);
+    measured.insert(measured.end(), s.candidates->measures.begin(), s.candidates->measures.end());
   }
   const MeasureNormaliser own = MeasureNormaliser::fit(measured);
-  run.normaliser = catalog ? MeasureNormaliser::fit(pool) : own;
-  run.normaliser.mean[5] = own.mean[5];
-  run.normaliser.sd[5] = own.sd[5];
+  out.normaliser = catalog ? MeasureNormaliser::fit(pool) : own;
+  out.normaliser.mean[5] = own.mean[5];
+  out.normaliser.sd[5] = own.sd[5];
+  return out;
 }
 
 /// Scores and suppression within each scene (timed as its suppress stage), then every scene's
@@ -399,7 +418,13 @@ SceneDiscovery discoverScenes(std::vector<SceneInput> inputs,
     progress.advance();
   }
   progress.finish();
-  addRecurrenceAndNormalise(run, catalog ? &*catalog : nullptr, settings, options.config);
+  std::vector<RecurrenceScene> measured;
+  for (DiscoveredScene& scene : run.scenes) measured.push_back({scene.scene_id, &scene.candidates});
+  const Normalisation normalised =
+      addRecurrenceAndNormalise(measured, catalog ? &*catalog : nullptr, settings, options.config);
+  run.normaliser = normalised.normaliser;
+  run.catalog_scenes = normalised.catalog_scenes;
+  run.catalog_segments = normalised.catalog_segments;
 
   const ObjectnessModel scorer =
       options.model ? *options.model
@@ -411,6 +436,63 @@ SceneDiscovery discoverScenes(std::vector<SceneInput> inputs,
                                           : "these scenes";
   run.seconds = secondsSince(start);
   return run;
+}
+
+CatalogTrainingSet catalogTrainingSet(const fs::path& catalog_path, const DiscoveryConfig& config) {
+  config.validate();
+  std::error_code ec;
+  if (!fs::exists(catalog_path, ec)) {
+    throw InputError(catalog_path,
+                     "no such catalog (objscan discover --catalog makes one; objscan view labels "
+                     "its segments)");
+  }
+  Catalog catalog(catalog_path);
+  const std::string settings = settingsKey(config);
+  CatalogTrainingSet out;
+  // The scenes with labels to use, each with every one of its segments: recurrence is computed
+  // and normalised over whole scenes, as discoverScenes does for the scenes it is given.
+  struct LabelledScene {
+    std::int64_t id = 0;
+    SceneCandidates candidates;
+    std::vector<std::int64_t> segment_ids;
+    std::vector<std::optional<int>> labels;
+  };
+  std::vector<LabelledScene> scenes;
+  for (const CatalogScene& scene : catalog.scenes()) {
+    const LabelCounts counts = catalog.labelCounts(scene.id);
+    if (scene.settings != settings) {
+      out.other_settings += counts.labelled;
+      continue;
+    }
+    out.unsure += counts.unsure;
+    if (counts.objects + counts.not_objects == 0) continue;
+    LabelledScene& labelled = scenes.emplace_back();
+    labelled.id = scene.id;
+    for (CatalogSegment& c : catalog.segments(scene.id, false)) {
+      labelled.segment_ids.push_back(c.id);
+      labelled.labels.push_back(c.label);
+      labelled.candidates.measures.push_back(c.measures);
+      labelled.candidates.segments.push_back(fromCatalog(std::move(c)));
+    }
+  }
+  out.scenes = scenes.size();
+  if (scenes.empty()) return out;
+  std::vector<RecurrenceScene> measured;
+  for (LabelledScene& s : scenes) measured.push_back({s.id, &s.candidates});
+  out.normaliser = addRecurrenceAndNormalise(measured, &catalog, settings, config).normaliser;
+  for (const LabelledScene& s : scenes) {
+    for (std::size_t i = 0; i < s.labels.size(); ++i) {
+      const std::optional<int>& label = s.labels[i];
+      if (label != static_cast<int>(SegmentLabel::kObject) &&
+          label != static_cast<int>(SegmentLabel::kNotObject)) {
+        continue;
+      }
+      out.measures.push_back(s.candidates.measures[i]);
+      out.labels.push_back(*label);
+      out.segment_ids.push_back(s.segment_ids[i]);
+    }
+  }
+  return out;
 }
 
 std::vector<int> LabelledSegments::labels(double min_iou) const {

@@ -25,6 +25,7 @@
 #include "objscan/core/output_folder.h"
 #include "objscan/core/ply_io.h"
 #include "objscan/core/trajectory.h"
+#include "objscan/discovery/catalog.h"
 #include "objscan/discovery/labels.h"
 #include "test_support.h"
 
@@ -572,6 +573,95 @@ TEST(TrainCli, AModelFromTrainScoresDiscover) {
   expectOneErrorLine(objscan({"train", (dir / "test.ply").string(), "--kind", "svm", "--model",
                               (dir / "m3.yml").string()}),
                      2, "unknown score kind 'svm'");
+}
+
+/// Labels a catalog's segments as a person would in objscan view: a segment mostly on a round
+/// mound (odd id in labelledScenes) an object, else not, at most `per_class` of each. Returns
+/// how many of each it labelled.
+std::pair<std::size_t, std::size_t> labelRoundMounds(const fs::path& catalog_file,
+                                                     const fs::path& scene_dir,
+                                                     std::size_t per_class) {
+  discovery::Catalog catalog(catalog_file);
+  std::size_t objects = 0, not_objects = 0;
+  for (const discovery::CatalogScene& scene : catalog.scenes()) {
+    const TriangleMesh mesh = readPly(scene_dir / fs::path(scene.name).filename());
+    for (const discovery::CatalogSegment& s : catalog.segments(scene.id, true)) {
+      std::size_t round = 0;
+      for (std::int32_t v : s.vertices) round += mesh.labels[static_cast<std::size_t>(v)] % 2;
+      const bool object = 2 * round > s.vertices.size();
+      std::size_t& count = object ? objects : not_objects;
+      if (count == per_class) continue;
+      catalog.setLabel(s.id, object ? 1 : 0, "tester");
+      ++count;
+    }
+  }
+  return {objects, not_objects};
+}
+
+TEST(TrainCli, TrainsOnTheCatalogsLabelsWithoutScenesAndDiscoverRanksWithTheModel) {
+  TempDir dir;
+  const std::string catalog = (dir / "catalog.sqlite").string();
+  std::vector<std::string> args = {"discover"};
+  for (const std::string& p : labelledScenes(dir, 2)) args.push_back(p);
+  for (const char* a : {"--catalog", catalog.c_str(), "--out"}) args.emplace_back(a);
+  args.push_back((dir / "found").string());
+  ProcessResult r = objscan(args);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto [objects, not_objects] = labelRoundMounds(catalog, dir.path(), 100);
+  ASSERT_GE(objects, 5u);
+  ASSERT_GE(not_objects, 5u);
+  // An unsure label is left out, and said so.
+  {
+    discovery::Catalog c(catalog);
+    c.setLabel(c.segments(c.scenes()[0].id, false)[0].id, 2, "tester");
+  }
+
+  r = objscan({"train", "--catalog", catalog, "--model", (dir / "model.yml").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("labels        " + std::to_string(objects + not_objects - 1) +
+                       " segments of 2 scenes"),
+            std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("left out: 1 unsure, 0 of scenes measured with other settings"),
+            std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("chosen        C="), std::string::npos) << r.out;
+
+  writePly(dir / "test.ply",
+           table({{-0.2f, 0.0f, 0.06f, 0.06f, 1, false}, {0.2f, 0.0f, 0.036f, 0.12f, 2, false}}));
+  r = objscan({"discover", (dir / "test.ply").string(), "--out", (dir / "out").string(),
+               "--catalog", catalog, "--model", (dir / "model.yml").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json doc = readJson(dir / "out" / "hypotheses.json");
+  EXPECT_EQ(doc["scoring"]["kind"], "rbf_svm");
+  // Trained on labels that prefer round mounds: the round one ranks first.
+  const TriangleMesh mesh = readPly(dir / "test.ply");
+  EXPECT_GE(iou(doc["hypotheses"][0]["vertices"].get<std::vector<std::int32_t>>(), mesh, 1), 0.7);
+}
+
+TEST(TrainCli, TooFewCatalogLabelsOrNoCatalogIsOneErrorLine) {
+  TempDir dir;
+  const std::string catalog = (dir / "catalog.sqlite").string();
+  writePly(dir / "a.ply", twoMounds());
+  ASSERT_EQ(objscan({"discover", (dir / "a.ply").string(), "--catalog", catalog, "--out",
+                     (dir / "found").string()})
+                .exit_code,
+            0);
+  const auto [objects, not_objects] = labelRoundMounds(catalog, dir.path(), 1);
+  ASSERT_EQ(objects, 1u);
+  expectOneErrorLine(
+      objscan({"train", "--catalog", catalog, "--model", (dir / "model.yml").string()}), 2,
+      "catalog.sqlite: too few labels to train on: 1 segments labelled object and " +
+          std::to_string(not_objects) +
+          " not an object (0 unsure and 0 of scenes measured with other settings left out); at "
+          "least 5 of each are needed: label more in objscan view");
+  EXPECT_FALSE(fs::exists(dir / "model.yml"));
+  expectOneErrorLine(objscan({"train", "--model", (dir / "model.yml").string()}), 2,
+                     "objscan train needs labelled scenes, or --catalog C");
+  expectOneErrorLine(objscan({"train", "--catalog", (dir / "none.sqlite").string(), "--model",
+                              (dir / "model.yml").string()}),
+                     2, "none.sqlite: no such catalog");
+  EXPECT_FALSE(fs::exists(dir / "none.sqlite"));
 }
 
 }  // namespace

@@ -141,6 +141,27 @@ struct SceneDiscovery {
 /// naming the catalog when it is damaged.
 SceneDiscovery discoverScenes(std::vector<SceneInput> scenes, const SceneDiscoveryOptions& options);
 
+/// The segments people labelled object (1) or not (0) in a catalog (objscan view), among the
+/// scenes measured with `config`'s settings, with recurrence computed against every other such
+/// scene and the normaliser discoverScenes would use with this catalog (the five measures' over
+/// its segments of these settings, recurrence's over the labelled scenes' segments); unsure labels
+/// are left out (counted). Every labelled segment of the catalog is counted once: in `labels`,
+/// `unsure` or `other_settings`.
+struct CatalogTrainingSet {
+  MeasureNormaliser normaliser;
+  std::vector<ShapeMeasures> measures;  ///< recurrence filled in
+  std::vector<int> labels;              ///< 1 object, 0 not
+  std::vector<std::int64_t> segment_ids;
+  std::size_t scenes = 0;  ///< scenes with at least one label used
+  std::size_t unsure = 0;  ///< left out: unsure
+  std::size_t other_settings =
+      0;  ///< left out: labelled segments of scenes measured with other settings
+};
+/// Throws InputError naming the catalog when it does not exist or is damaged,
+/// std::invalid_argument for a bad config. Reads the catalog only.
+CatalogTrainingSet catalogTrainingSet(const std::filesystem::path& catalog,
+                                      const DiscoveryConfig& config);
+
 /// The segments a labelled run evaluates or trains on: each scene's candidates after
 /// non-maximum suppression by the average score (as the paper's data set holds them), scene by
 /// scene, each with its best ground-truth match. Every scene must carry its truth.
