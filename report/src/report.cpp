@@ -828,6 +828,7 @@ std::string view3dSection(const Hypotheses& hypotheses, const TriangleMesh* mesh
   std::string html = "<section id=\"view3d\">\n<h2>3-D view</h2>\n";
   const std::string command = "<code>objscan view " + escape(dir.string()) + "</code>";
   std::string note;
+  std::string scripts;
   std::optional<ViewMesh> made;
   if (mesh && !mesh->triangles.empty() && !hypotheses.scenes.empty()) {
     try {
@@ -845,16 +846,18 @@ std::string view3dSection(const Hypotheses& hypotheses, const TriangleMesh* mesh
               std::to_string(mesh->triangles.size()) + " triangles";
     }
     note += ". ";
-    html += "<script>" + std::string(threeJs()) + "</script>\n<script>" +
-            std::string(orbitControlsJs()) + "</script>\n<script>" + std::string(meshViewJs()) +
-            "</script>\n<script type=\"application/octet-stream\" id=\"mesh-data\">" +
-            base64(meshViewPayload(view)) + "</script>\n<script>" + std::string(kView3dScript) +
-            "</script>\n";
+    scripts = "<script>" + std::string(threeJs()) + "</script>\n<script>" +
+              std::string(orbitControlsJs()) + "</script>\n<script>" +
+              std::string(meshViewJs()) +
+              "</script>\n<script type=\"application/octet-stream\" id=\"mesh-data\">" +
+              base64(meshViewPayload(view)) + "</script>\n<script>" +
+              std::string(kView3dScript) + "</script>\n";
   } else if (note.empty()) {
     note = "No scene mesh was at hand for an inline view. ";
   }
+  // The note before the scripts: the view's script fills its link.
   html += "<p class=\"note\">" + note + "The full viewer, with object details and labelling: " +
-          command + "<span id=\"viewer-link\"></span>.</p>\n</section>\n";
+          command + "<span id=\"viewer-link\"></span>.</p>\n" + scripts + "</section>\n";
   return html;
 }
 

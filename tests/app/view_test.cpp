@@ -442,8 +442,7 @@ TEST(ViewPage, DrawsSelectsAndLabelsInChromiumAndTrainUsesTheLabels) {
             "2");
   EXPECT_EQ(page.evaluate("document.getElementById('download').getAttribute('href')"),
             "/results/objects/rank_002.ply");
-  ASSERT_TRUE(page.waitFor("document.getElementById('view').getAttribute('data-rendered') > 2", 10));
-  page.evaluate("new Promise(function (r) { requestAnimationFrame(function () { r(1); }); })");
+  ASSERT_TRUE(page.waitFor("document.body.getAttribute('data-highlight') === 'rank:2'", 10));
   EXPECT_GT(canvasPixels(page).yellow, shown.yellow + 50)
       << "the selected hypothesis is not highlighted";
 
@@ -537,6 +536,48 @@ TEST(ViewPage, DrawsSelectsAndLabelsInChromiumAndTrainUsesTheLabels) {
   const json ranked = json::parse(readWholeFile(dir / "ranked" / "hypotheses.json"));
   EXPECT_EQ(ranked["scoring"]["kind"], "rbf_svm");
   EXPECT_FALSE(ranked["hypotheses"].empty());
+  view->signal(SIGINT);
+  EXPECT_EQ(view->wait(10), 0);
+}
+
+TEST(ViewPage, TheReportsInlineViewDrawsOfflineAndLinksTheViewerWhenServed) {
+  TempDir dir;
+  const fs::path res = freshCopy(dir);
+  testing::ChromiumPage page;
+  ASSERT_TRUE(page.ok());
+  // Opened from disk, no server: the scene in 3-D from the page alone.
+  page.navigate(testing::fileUrl(fs::absolute(res / "report.html")));
+  ASSERT_TRUE(page.waitFor("document.getElementById('mesh-view').getAttribute('data-state') !== "
+                           "'loading'",
+                           30));
+  EXPECT_EQ(page.evaluate("document.getElementById('mesh-view').getAttribute('data-state')"),
+            "ready")
+      << page.evaluate("document.getElementById('mesh-view').textContent").dump();
+  const json drawn = page.evaluate(R"((function () {
+    var c = document.querySelector('#mesh-view canvas');
+    var t = document.createElement('canvas');
+    t.width = c.width; t.height = c.height;
+    var g = t.getContext('2d');
+    g.drawImage(c, 0, 0);
+    var d = g.getImageData(0, 0, t.width, t.height).data, n = 0;
+    for (var i = 0; i < d.length; i += 4) {
+      if (Math.abs(d[i] - 244) + Math.abs(d[i + 1] - 245) + Math.abs(d[i + 2] - 247) > 24) ++n;
+    }
+    return n / (t.width * t.height);
+  })())");
+  ASSERT_TRUE(drawn.is_number());
+  // The whole scene in a 480-pixel band: about an eighth of it is mesh on this desk.
+  EXPECT_GT(drawn.get<double>(), 0.05) << "the inline view is (nearly) blank";
+  EXPECT_EQ(page.evaluate("document.body.getAttribute('data-errors')"), "0") << page.console();
+  EXPECT_EQ(page.evaluate("document.querySelector('#viewer-link a') === null"), true);
+
+  // Served by objscan view, the same report links the viewer.
+  int port = 0;
+  auto view = startView(res, &port);
+  ASSERT_GT(port, 0);
+  page.navigate("http://127.0.0.1:" + std::to_string(port) + "/results/report.html");
+  EXPECT_TRUE(page.waitFor("document.querySelector('#viewer-link a') !== null", 30));
+  EXPECT_EQ(page.evaluate("document.querySelector('#viewer-link a').getAttribute('href')"), "/");
   view->signal(SIGINT);
   EXPECT_EQ(view->wait(10), 0);
 }
