@@ -130,6 +130,15 @@ ViewData::ViewData(const ViewSettings& settings) : settings_(settings) {
   }
   if (!labelling_off_.empty()) log::warning("labelling is off: " + labelling_off_);
 
+  const fs::path camera = settings.dir / "renders" / "overview_camera.json";
+  if (fs::is_regular_file(camera, ec)) {
+    try {
+      camera_json_ = report::viewCameraJson(report::readOverviewCamera(camera));
+    } catch (const std::exception& e) {  // the view starts from its own camera instead
+      log::warning(std::string("the overview camera is not used: ") + e.what());
+    }
+  }
+
   scenes_.resize(hypotheses_.scenes.size());
   ProgressBar progress("reading scenes", scenes_.size());
   for (std::size_t i = 0; i < scenes_.size(); ++i) {
@@ -301,6 +310,7 @@ HttpReply ViewServer::route(const HttpRequest& request) {
                 {"palette", palette},
                 {"labeller", data_.settings().labeller},
                 {"catalog", data_.catalogPath().string()}};
+    if (!data_.cameraJson().empty()) doc["camera"] = Json::parse(data_.cameraJson());
     if (h.scoring) doc["scoring"] = {{"kind", h.scoring->kind}, {"model", h.scoring->model}};
     if (!data_.labellingOff().empty()) doc["labelling_off"] = data_.labellingOff();
     return HttpReply::json(dump(doc));
@@ -459,9 +469,19 @@ HttpReply ViewServer::undo(const HttpRequest& request) {
   const std::optional<std::string> by = labellerOf(body, data_.settings().labeller);
   if (!by) return jsonError(400, "\"by\" is a name of 1 to 64 characters, without control characters");
   if (!data_.catalog()) return jsonError(409, "labelling is off: " + data_.labellingOff());
+  const auto id = event->get<std::int64_t>();
   std::lock_guard<std::mutex> lock(data_.catalogMutex());
   try {
-    const discovery::LabelEvent e = data_.catalog()->undoLabel(event->get<std::int64_t>(), *by);
+    // Only events of the scenes shown: the page undoes what it labelled.
+    bool shown = false;
+    for (const ViewScene& s : data_.scenes()) {
+      if (!s.catalog_scene || shown) continue;
+      for (const discovery::LabelEvent& e : data_.catalog()->labelEvents(*s.catalog_scene)) {
+        shown |= e.id == id;
+      }
+    }
+    if (!shown) return jsonError(404, "no such label event among these scenes");
+    const discovery::LabelEvent e = data_.catalog()->undoLabel(id, *by);
     Json j = eventJson(e);
     j["progress"] = countsJson(data_.catalog()->labelCounts(e.scene_id));
     return HttpReply::json(dump(j));

@@ -61,6 +61,9 @@ class ViewData {
   /// The catalog labels go to (empty when none), and why labelling is off (empty when on).
   const std::filesystem::path& catalogPath() const { return catalog_path_; }
   const std::string& labellingOff() const { return labelling_off_; }
+  /// The overview picture's camera as JSON (report::viewCameraJson), the first scene's starting
+  /// view; empty when the folder has none.
+  const std::string& cameraJson() const { return camera_json_; }
 
   /// The catalog, for one caller at a time: lock catalogMutex() around every use.
   discovery::Catalog* catalog() { return catalog_.get(); }
@@ -76,6 +79,7 @@ class ViewData {
   std::vector<ViewScene> scenes_;
   std::filesystem::path catalog_path_;
   std::string labelling_off_;
+  std::string camera_json_;
   std::unique_ptr<discovery::Catalog> catalog_;
   std::mutex catalog_mutex_;
 };

@@ -1,6 +1,8 @@
 #include "objscan/report/mesh_view.h"
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <limits>
 #include <stdexcept>
@@ -88,6 +90,24 @@ std::string meshViewPayload(const ViewMesh& view) {
     for (int k = 0; k < 3; ++k) putU32(out, static_cast<std::uint32_t>(t[k]));
   }
   return out;
+}
+
+std::string viewCameraJson(const OverviewCamera& camera) {
+  const Eigen::Vector3f position = camera.T_W_C.translation();
+  // The camera looks along its +z with +y down (objscan's camera frame).
+  const Eigen::Vector3f forward = camera.T_W_C.linear() * Eigen::Vector3f::UnitZ();
+  const Eigen::Vector3f up = camera.T_W_C.linear() * -Eigen::Vector3f::UnitY();
+  const double fov = 2.0 * std::atan(0.5 * camera.intrinsics.height_px / camera.intrinsics.fy_px) *
+                     180.0 / M_PI;
+  const auto triple = [](const Eigen::Vector3f& v) {
+    char text[96];
+    std::snprintf(text, sizeof text, "[%.6g, %.6g, %.6g]", v.x(), v.y(), v.z());
+    return std::string(text);
+  };
+  char fov_text[32];
+  std::snprintf(fov_text, sizeof fov_text, "%.4g", std::isfinite(fov) ? fov : 50.0);
+  return "{\"position\": " + triple(position) + ", \"forward\": " + triple(forward) +
+         ", \"up\": " + triple(up) + ", \"fov_y_deg\": " + fov_text + "}";
 }
 
 std::vector<std::uint32_t> previewVertices(const DecimatedMesh& preview,

@@ -409,7 +409,8 @@ constexpr std::string_view kView3dScript = R"js(
   try {
     var data = document.getElementById('mesh-data').textContent;
     var mesh = ObjscanMeshView.decode(ObjscanMeshView.base64ToBuffer(data.trim()));
-    new ObjscanMeshView.MeshView(box, mesh);
+    var camera = JSON.parse(document.getElementById('mesh-camera').textContent);
+    new ObjscanMeshView.MeshView(box, mesh, camera);
     box.setAttribute('data-state', 'ready');
   } catch (e) {
     box.textContent = 'The 3-D view could not start here (' + e.message + ').';
@@ -824,7 +825,7 @@ std::string settingsSection(const Settings& st) {
 /// in their rank colours, at most kInlineTriangles triangles (decimated past that). Always the
 /// command that opens the full viewer, and a link to it when the page is served by it.
 std::string view3dSection(const Hypotheses& hypotheses, const TriangleMesh* mesh,
-                          const fs::path& dir) {
+                          const std::optional<OverviewCamera>& camera, const fs::path& dir) {
   std::string html = "<section id=\"view3d\">\n<h2>3-D view</h2>\n";
   const std::string command = "<code>objscan view " + escape(dir.string()) + "</code>";
   std::string note;
@@ -850,7 +851,9 @@ std::string view3dSection(const Hypotheses& hypotheses, const TriangleMesh* mesh
               std::string(orbitControlsJs()) + "</script>\n<script>" +
               std::string(meshViewJs()) +
               "</script>\n<script type=\"application/octet-stream\" id=\"mesh-data\">" +
-              base64(meshViewPayload(view)) + "</script>\n<script>" +
+              base64(meshViewPayload(view)) +
+              "</script>\n<script type=\"application/json\" id=\"mesh-camera\">" +
+              (camera ? viewCameraJson(*camera) : std::string("null")) + "</script>\n<script>" +
               std::string(kView3dScript) + "</script>\n";
   } else if (note.empty()) {
     note = "No scene mesh was at hand for an inline view. ";
@@ -871,7 +874,8 @@ fs::path writeReport(const ScanResults& results, const fs::path& dir,
   html += interruptedNotice(in);
   html += pictures(in);
   if (!scene_mesh && results.mesh) scene_mesh = &*results.mesh;
-  html += view3dSection(*results.hypotheses, scene_mesh, dir);
+  html += view3dSection(*results.hypotheses, scene_mesh,
+                        results.pictures ? results.pictures->camera : std::nullopt, dir);
   html += hypothesesSection(in);
   if (in.evaluation) html += evaluationSection(*in.evaluation);
   if (in.timings) html += timingsSection(*in.timings);

@@ -111,7 +111,11 @@ std::string rankFileName(std::size_t rank, const char* extension) {
 
 std::optional<CatalogUse> catalogUseOf(const discovery::SceneDiscovery& run) {
   if (!run.catalog) return std::nullopt;
-  return CatalogUse{run.catalog->string(), run.catalog_scenes, run.catalog_segments};
+  // Absolute: objscan view and a repeated run find it from any working directory.
+  std::error_code ec;
+  const fs::path absolute = fs::absolute(*run.catalog, ec).lexically_normal();
+  return CatalogUse{(ec ? *run.catalog : absolute).string(), run.catalog_scenes,
+                    run.catalog_segments};
 }
 
 namespace {
@@ -537,7 +541,9 @@ Json cameraJson(const OverviewCamera& c) {
             {"height", in.height_px}}}};
 }
 
-OverviewCamera readCamera(const fs::path& file) {
+}  // namespace
+
+OverviewCamera readOverviewCamera(const fs::path& file) {
   const Json doc = json_node::parseFile(file);
   const Node top(file, doc, "");
   OverviewCamera c;
@@ -559,6 +565,8 @@ OverviewCamera readCamera(const fs::path& file) {
   c.intrinsics.height_px = static_cast<int>(in.require("height", in.integer("height")));
   return c;
 }
+
+namespace {
 
 }  // namespace
 
@@ -600,7 +608,7 @@ Pictures readPictures(const fs::path& dir, const std::vector<std::size_t>& ranks
   }
   std::error_code ec;
   if (fs::exists(renders / "overview_camera.json", ec)) {
-    p.camera = readCamera(renders / "overview_camera.json");
+    p.camera = readOverviewCamera(renders / "overview_camera.json");
   }
   return p;
 }

@@ -50,12 +50,15 @@
     return out.buffer;
   }
 
-  // A view of `mesh` (decode's result) in `container` (an element with a size).
-  function MeshView(container, mesh) {
+  // A view of `mesh` (decode's result) in `container` (an element with a size). `camera`
+  // (optional): where to start, {position, forward, up, fov_y_deg} (mesh_view.h's
+  // viewCameraJson); without it, from behind and above the scene.
+  function MeshView(container, mesh, camera) {
     if (typeof THREE === "undefined") throw new Error("three.js did not load");
     this.container = container;
     this.mesh = mesh;
     this.mode = mesh.colours ? "colour" : "shading";
+    this.start = camera || null;
     this.showRanks = true;
     this.highlight = null;
     this.renderer = new THREE.WebGLRenderer({antialias: true, preserveDrawingBuffer: true});
@@ -101,11 +104,23 @@
   MeshView.prototype.resetCamera = function () {
     var s = this.geometry.boundingSphere;
     var r = Math.max(s.radius, 1e-3);
-    this.camera.up.set(0, -1, 0);
     this.camera.near = r / 100;
     this.camera.far = r * 100;
-    this.camera.position.set(s.center.x, s.center.y - 0.9 * r, s.center.z - 1.8 * r);
-    this.controls.target.copy(s.center);
+    var c = this.start;
+    if (c && c.position && c.forward && c.up) {
+      // The pictures' camera; it turns about the point of its axis nearest the scene's centre.
+      var p = new THREE.Vector3().fromArray(c.position);
+      var f = new THREE.Vector3().fromArray(c.forward).normalize();
+      var d = Math.max(s.center.clone().sub(p).dot(f), r / 10);
+      this.camera.up.fromArray(c.up);
+      this.camera.position.copy(p);
+      this.camera.fov = c.fov_y_deg || 50;
+      this.controls.target.copy(p.clone().add(f.multiplyScalar(d)));
+    } else {
+      this.camera.up.set(0, -1, 0);
+      this.camera.position.set(s.center.x, s.center.y - 0.7 * r, s.center.z - 1.4 * r);
+      this.controls.target.copy(s.center);
+    }
     this.camera.updateProjectionMatrix();
     this.controls.update();
   };

@@ -343,6 +343,46 @@ TEST(ViewServer, TwoViewersAndManyTabsLabellingAtOnceLoseNothing) {
   EXPECT_EQ(b->wait(10), 0);
 }
 
+TEST(ViewServer, SeveralScenesOfOneDiscoverRunAreEachShownAndLabelledApart) {
+  TempDir dir;
+  const fs::path& scan = scannedScene();
+  // Two scenes, from a working directory elsewhere and a relative catalog path: the viewer
+  // finds the catalog anyway (hypotheses.json notes it absolute).
+  fs::copy_file(scan / "res" / "mesh.ply", dir / "desk.ply");
+  writePly(dir / "mound.ply",
+           testing::makeHeightField(120, 0.3f, [](float x, float y) {
+             return 0.05f * std::max(0.0f, 1.0f - (x * x + y * y) / 0.01f);
+           }));
+  testing::ProcessOptions in_dir;
+  in_dir.cwd = dir.path();
+  ProcessResult r = testing::runProcess({OBJSCAN_EXE, "discover", "desk.ply", "mound.ply", "--catalog",
+                                         "cat.sqlite", "--out", "both"},
+                                        in_dir);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  int port = 0;
+  auto view = startView(dir / "both", &port);
+  ASSERT_GT(port, 0);
+  const json results = jsonOf(get(port, "/api/results"));
+  ASSERT_EQ(results["scenes"].size(), 2u) << results.dump();
+  EXPECT_EQ(results["catalog"], (dir / "cat.sqlite").string());
+  for (int i = 0; i < 2; ++i) {
+    EXPECT_TRUE(results["scenes"][i]["labelling"].get<bool>()) << i;
+    EXPECT_EQ(get(port, "/api/scenes/" + std::to_string(i) + "/mesh").status, 200);
+  }
+  const json desk = jsonOf(get(port, "/api/scenes/0/segments"));
+  const json mound = jsonOf(get(port, "/api/scenes/1/segments"));
+  ASSERT_FALSE(mound["segments"].empty());
+  std::set<std::int64_t> desk_ids;
+  for (const json& s : desk["segments"]) desk_ids.insert(s["id"].get<std::int64_t>());
+  for (const json& s : mound["segments"]) EXPECT_EQ(desk_ids.count(s["id"].get<std::int64_t>()), 0u);
+  const std::string id = mound["segments"][0]["id"].dump();
+  ASSERT_EQ(post(port, "/api/label", R"({"segment": )" + id + R"(, "label": "object"})").status, 200);
+  EXPECT_EQ(jsonOf(get(port, "/api/scenes/1/labels"))["progress"]["labelled"], 1);
+  EXPECT_EQ(jsonOf(get(port, "/api/scenes/0/labels"))["progress"]["labelled"], 0);
+  view->signal(SIGINT);
+  EXPECT_EQ(view->wait(10), 0);
+}
+
 TEST(ViewServer, FoldersWithoutResultsOrWithDamagedFilesSayWhat) {
   TempDir dir;
   fs::create_directories(dir / "empty");

@@ -44,6 +44,11 @@ ViewMesh viewMesh(const TriangleMesh& mesh, const std::vector<HypothesisRecord>&
 ///   uint32 a, b, c per triangle              (t × 12 bytes)
 std::string meshViewPayload(const ViewMesh& view);
 
+/// The overview picture's camera (renders/overview_camera.json) as the view's starting camera, so
+/// that the 3-D view opens on what the pictures show: JSON {"position": [x, y, z], "forward":
+/// [..], "up": [..], "fov_y_deg": f}, world frame, metres.
+std::string viewCameraJson(const OverviewCamera& camera);
+
 /// The vertices of `vertices` (indices into the full mesh) as vertices of the preview: mapped,
 /// unused ones dropped, each once, increasing. Out-of-range indices are dropped.
 std::vector<std::uint32_t> previewVertices(const DecimatedMesh& preview,

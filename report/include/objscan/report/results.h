@@ -78,7 +78,7 @@ struct Scoring {
 
 /// The catalog a run used and what it held with the run's settings.
 struct CatalogUse {
-  std::string path;
+  std::string path;  ///< absolute
   std::size_t scenes = 0, segments = 0;
 };
 

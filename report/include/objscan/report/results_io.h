@@ -78,6 +78,9 @@ void writePictures(const std::filesystem::path& dir, const Pictures& pictures);
 /// Reads DIR/renders/'s pictures (those present; the close-ups of `ranks`) and its camera.
 /// InputError for a file that is not a PNG, or a camera file of the wrong shape.
 Pictures readPictures(const std::filesystem::path& dir, const std::vector<std::size_t>& ranks);
+/// renders/overview_camera.json's reader. Throws InputError naming the file when it is missing or
+/// damaged.
+OverviewCamera readOverviewCamera(const std::filesystem::path& file);
 /// A PNG's size from its header; InputError naming `what` when the bytes are not a PNG.
 Picture pictureFromPng(std::string png, const std::string& what);
 
