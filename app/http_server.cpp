@@ -8,6 +8,7 @@
 #include <charconv>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <optional>
 #include <stdexcept>
 #include <string_view>
@@ -16,6 +17,7 @@
 
 #include <civetweb.h>
 
+#include "objscan/core/clock.h"
 #include "objscan/core/log.h"
 
 namespace objscan::app {
@@ -29,6 +31,8 @@ bool parsePort(std::string_view text, int* port) {
   return ec == std::errc() && end == text.data() + text.size() && *port >= 0 && *port <= 65535;
 }
 
+/// Dotted-decimal IPv4 as browsers read it: four parts 0 to 255, no leading zeros (a browser reads
+/// "010" as octal, so the URL printed would name another address).
 bool isIpv4(std::string_view host) {
   int parts = 0;
   std::size_t at = 0;
@@ -38,7 +42,7 @@ bool isIpv4(std::string_view host) {
     int value = 0;
     const auto [end, ec] = std::from_chars(part.data(), part.data() + part.size(), value);
     if (part.empty() || part.size() > 3 || ec != std::errc() || end != part.data() + part.size() ||
-        value > 255) {
+        value > 255 || (part.size() > 1 && part[0] == '0')) {
       return false;
     }
     ++parts;
@@ -59,18 +63,76 @@ int logMessage(const mg_connection*, const char* message) {
   return 1;
 }
 
-void send(mg_connection* conn, const HttpReply& r, bool head) {
-  if (!r.file.empty()) {
-    mg_send_mime_file2(conn, r.file.c_str(), nullptr, "X-Content-Type-Options: nosniff\r\n");
-    return;
+/// How long a client may take to send a request's body, and to read a reply: a slow one keeps a
+/// server thread, so each is bounded (10 s, and for a reply 1 s more per 256 kB).
+constexpr double kBodySeconds = 10.0;
+double replySeconds(std::uint64_t bytes) { return 10.0 + static_cast<double>(bytes) / 262144.0; }
+
+/// Writes `bytes` in 64 kB pieces until done, the client goes, or `seconds` have passed.
+void writeWithin(mg_connection* conn, std::string_view bytes, double seconds) {
+  const auto start = SteadyClock::now();
+  for (std::size_t at = 0; at < bytes.size();) {
+    const std::size_t n = std::min<std::size_t>(65536, bytes.size() - at);
+    if (mg_write(conn, bytes.data() + at, n) <= 0) return;
+    at += n;
+    if (at < bytes.size() && secondsSince(start) > seconds) {
+      log::debug("server: a client read too slowly; its connection is dropped");
+      return;
+    }
   }
-  mg_response_header_start(conn, r.status);
-  mg_response_header_add(conn, "Content-Type", r.type.c_str(), -1);
+}
+
+/// The Content-Type of a results file, by its extension.
+const char* typeOfFile(const fs::path& file) {
+  static const std::pair<const char*, const char*> kTypes[] = {
+      {".html", "text/html; charset=utf-8"}, {".json", "application/json"},
+      {".png", "image/png"},                  {".jpg", "image/jpeg"},
+      {".txt", "text/plain; charset=utf-8"},  {".csv", "text/csv; charset=utf-8"},
+      {".svg", "image/svg+xml"},              {".glb", "model/gltf-binary"},
+      {".gltf", "model/gltf+json"},           {".obj", "model/obj"},
+      {".stl", "model/stl"},                  {".yml", "text/plain; charset=utf-8"}};
+  const std::string extension = file.extension().string();
+  for (const auto& [e, type] : kTypes) {
+    if (extension == e) return type;
+  }
+  return "application/octet-stream";  // .ply, .sqlite, .oni, ...
+}
+
+void sendHeaders(mg_connection* conn, int status, const char* type, std::uint64_t length) {
+  mg_response_header_start(conn, status);
+  mg_response_header_add(conn, "Content-Type", type, -1);
   mg_response_header_add(conn, "Cache-Control", "no-store", -1);
   mg_response_header_add(conn, "X-Content-Type-Options", "nosniff", -1);
-  mg_response_header_add(conn, "Content-Length", std::to_string(r.body.size()).c_str(), -1);
+  mg_response_header_add(conn, "Content-Length", std::to_string(length).c_str(), -1);
   mg_response_header_send(conn);
-  if (!head && !r.body.empty()) mg_write(conn, r.body.data(), r.body.size());
+}
+
+void send(mg_connection* conn, const HttpReply& r, bool head) {
+  if (!r.file.empty()) {
+    // Streamed here rather than by civetweb, so that a slow reader is bounded like any reply.
+    std::ifstream in(r.file, std::ios::binary);
+    std::error_code ec;
+    const std::uintmax_t size = fs::file_size(r.file, ec);
+    if (!in || ec) {
+      send(conn, HttpReply::text(404, "no such file in the results folder"), head);
+      return;
+    }
+    sendHeaders(conn, 200, typeOfFile(r.file), size);
+    if (head) return;
+    const auto start = SteadyClock::now();
+    std::string chunk(1 << 16, '\0');
+    for (std::uintmax_t left = size; left > 0 && in;) {
+      in.read(chunk.data(), static_cast<std::streamsize>(std::min<std::uintmax_t>(chunk.size(), left)));
+      const auto n = static_cast<std::size_t>(in.gcount());
+      if (n == 0 || mg_write(conn, chunk.data(), n) <= 0) return;
+      left -= n;
+      if (left > 0 && secondsSince(start) > replySeconds(size)) return;
+    }
+    return;
+  }
+  const std::string_view body = r.content();
+  sendHeaders(conn, r.status, r.type.c_str(), body.size());
+  if (!head && !body.empty()) writeWithin(conn, body, replySeconds(body.size()));
 }
 
 }  // namespace
@@ -95,6 +157,20 @@ HttpReply HttpReply::bytes(std::string type, std::string body) {
   HttpReply r;
   r.type = std::move(type);
   r.body = std::move(body);
+  return r;
+}
+
+HttpReply HttpReply::sharedBytes(std::string type, std::shared_ptr<const std::string> body) {
+  HttpReply r;
+  r.type = std::move(type);
+  r.shared = std::move(body);
+  return r;
+}
+
+HttpReply HttpReply::staticBytes(std::string type, std::string_view body) {
+  HttpReply r;
+  r.type = std::move(type);
+  r.fixed = body;
   return r;
 }
 
@@ -203,10 +279,16 @@ struct HttpServer::Impl {
     }
     body->resize(static_cast<std::size_t>(info->content_length));
     std::size_t got = 0;
+    const auto start = SteadyClock::now();
     while (got < body->size()) {
-      const int n = mg_read(conn, body->data() + got, body->size() - got);
+      // A byte at a time: civetweb's read waits for all it is asked for, and the deadline is
+      // only looked at between reads (a body is at most a few kB).
+      const int n = mg_read(conn, body->data() + got, 1);
       if (n <= 0) return HttpReply::text(400, "the body ended before its announced length");
       got += static_cast<std::size_t>(n);
+      if (got < body->size() && secondsSince(start) > kBodySeconds) {
+        return HttpReply::text(408, "the body came too slowly");
+      }
     }
     return std::nullopt;
   }
@@ -224,8 +306,13 @@ ServeAddress parseServeAddress(const std::string& text, const std::string& flag)
   }
   if (!isIpv4(address.host)) {
     throw std::invalid_argument(flag + " '" + text + "': '" + address.host +
-                                "' is not an IPv4 address (e.g. 127.0.0.1, or 0.0.0.0 for every " +
-                                "interface)");
+                                "' is not an IPv4 address in dotted decimal without leading zeros " +
+                                "(e.g. 127.0.0.1, or 0.0.0.0 for every interface)");
+  }
+  if (const int first = std::atoi(address.host.c_str()); first >= 224) {
+    throw std::invalid_argument(flag + " '" + text + "': '" + address.host +
+                                "' is a multicast, reserved or broadcast address, which no browser " +
+                                "can reach a server on");
   }
   return address;
 }

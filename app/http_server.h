@@ -17,6 +17,9 @@
 /// What every route gets from it: a request whose Host is not the server's own is refused (403:
 /// DNS rebinding); only GET and HEAD, and POST where the server takes bodies (405 otherwise); a
 /// request over 16 kB of headers is refused by civetweb; an exception in a handler becomes a 500.
+/// A client that sends its body or reads the reply slowly keeps one of the 8 server threads for
+/// a bounded time only: 10 s for a body, 10 s plus 1 s per 256 kB for a reply; past that its
+/// connection is dropped.
 namespace objscan::app {
 
 /// Where the server listens. The address is 127.0.0.1 unless one is given; port 0 takes any free
@@ -26,7 +29,8 @@ struct ServeAddress {
   int port = 0;
 };
 
-/// Parses "[ADDR:]PORT" (an IPv4 address or "localhost", and a port 0 to 65535). Throws
+/// Parses "[ADDR:]PORT" (an IPv4 address in plain dotted decimal, no leading zeros, not a
+/// multicast or broadcast one, or "localhost"; and a port 0 to 65535). Throws
 /// std::invalid_argument naming the text and what is wrong; `flag` names the option in it.
 ServeAddress parseServeAddress(const std::string& text, const std::string& flag = "--serve");
 
@@ -42,13 +46,20 @@ struct HttpReply {
   int status = 200;
   std::string type = "text/plain; charset=utf-8";
   std::string body;
-  /// When set, the reply is this file (civetweb sends it: type from its extension, ranges).
+  /// Instead of `body`, bytes shared with the server's data (a large mesh is not copied per
+  /// request), or bytes that live as long as the program (compiled-in pages and scripts).
+  std::shared_ptr<const std::string> shared;
+  std::string_view fixed;
+  /// When set, the reply is this file (type from its extension).
   std::filesystem::path file;
 
   static HttpReply text(int status, std::string text);
   static HttpReply json(std::string body, int status = 200);
   static HttpReply bytes(std::string type, std::string body);
+  static HttpReply sharedBytes(std::string type, std::shared_ptr<const std::string> body);
+  static HttpReply staticBytes(std::string type, std::string_view body);
   static HttpReply sendFile(std::filesystem::path file);
+  std::string_view content() const { return shared ? std::string_view(*shared) : fixed.empty() ? std::string_view(body) : fixed; }
 };
 
 struct HttpServerOptions {

@@ -79,6 +79,8 @@ int runView(const ViewCommandOptions& options) {
   settings.max_preview_triangles = options.max_preview_triangles;
   ViewData data(settings);
 
+  // Listening before the meshes are read: a port in use is said at once, and the page can be
+  // opened while they load (it waits for them).
   std::unique_ptr<ViewServer> server;
   if (address) {
     server = std::make_unique<ViewServer>(data, *address);
@@ -90,20 +92,28 @@ int runView(const ViewCommandOptions& options) {
     try {
       server = std::make_unique<ViewServer>(data, ServeAddress{"127.0.0.1", kDefaultPort});
     } catch (const std::invalid_argument&) {
+      log::warning("port " + std::to_string(kDefaultPort) +
+                   " is taken (another objscan view?): serving on a free one");
       server = std::make_unique<ViewServer>(data, ServeAddress{"127.0.0.1", 0});
     }
-  }
-  std::size_t shown = 0;
-  for (const ViewScene& s : data.scenes()) shown += s.error.empty() ? 1 : 0;
-  std::printf("scenes        %zu (%zu can be shown), %zu hypotheses\n", data.scenes().size(), shown,
-              data.hypotheses().hypotheses.size());
-  if (data.labellingOff().empty()) {
-    std::printf("labels        into %s, as %s\n", data.catalogPath().c_str(),
-                settings.labeller.c_str());
   }
   char how_long[64] = "until Ctrl-C";
   if (options.wait_s) std::snprintf(how_long, sizeof how_long, "for %g s", *options.wait_s);
   std::printf("viewer        %s (serving %s)\n", server->url().c_str(), how_long);
+  std::fflush(stdout);
+
+  data.loadScenes();
+  std::size_t shown = 0, labelled = 0;
+  for (const ViewScene& s : data.scenes()) {
+    shown += s.error.empty() ? 1 : 0;
+    labelled += s.catalog_scene ? 1 : 0;
+  }
+  std::printf("scenes        %zu (%zu can be shown, %zu labelled), %zu hypotheses\n",
+              data.scenes().size(), shown, labelled, data.hypotheses().hypotheses.size());
+  if (labelled > 0) {
+    std::printf("labels        into %s, as %s\n", data.catalogPath().c_str(),
+                settings.labeller.c_str());
+  }
   std::fflush(stdout);
   if (shown == 0) log::warning("no scene of " + options.dir.string() + " can be shown (see above)");
 

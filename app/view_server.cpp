@@ -80,10 +80,26 @@ std::optional<std::string> labellerOf(const Json& body, const std::string& fallb
   if (!it->is_string()) return std::nullopt;
   const std::string by = it->get<std::string>();
   if (by.empty()) return fallback;
-  if (by.size() > 64) return std::nullopt;
-  for (const unsigned char c : by) {
-    if (c < 0x20 || c == 0x7f) return std::nullopt;
+  // nlohmann has checked the UTF-8; count characters and refuse the invisible and the
+  // misleading: controls (C0, DEL, C1), line and paragraph separators, bidi overrides.
+  std::size_t characters = 0;
+  bool visible = false;
+  for (std::size_t i = 0; i < by.size();) {
+    const auto c = static_cast<unsigned char>(by[i]);
+    const std::size_t length = c < 0x80 ? 1 : c < 0xe0 ? 2 : c < 0xf0 ? 3 : 4;
+    std::uint32_t code = length == 1 ? c : c & (0x3fu >> (length - 1));
+    for (std::size_t k = 1; k < length && i + k < by.size(); ++k) {
+      code = (code << 6) | (static_cast<unsigned char>(by[i + k]) & 0x3fu);
+    }
+    i += length;
+    ++characters;
+    if (code < 0x20 || (code >= 0x7f && code <= 0x9f) || code == 0x2028 || code == 0x2029 ||
+        (code >= 0x202a && code <= 0x202e) || (code >= 0x2066 && code <= 0x2069)) {
+      return std::nullopt;
+    }
+    visible |= code != ' ';
   }
+  if (characters > 64 || !visible) return std::nullopt;
   return by;
 }
 
@@ -121,9 +137,16 @@ ViewData::ViewData(const ViewSettings& settings) : settings_(settings) {
         "discover with --catalog, or give view --catalog";
   } else if (!fs::is_regular_file(catalog_path_, ec)) {
     labelling_off_ = "the catalog " + catalog_path_.string() + " is missing";
+  } else if (fs::file_size(catalog_path_, ec) == 0 || ec) {
+    // SQLite would make an empty file a new catalog: not the viewer's to do.
+    labelling_off_ = "the catalog " + catalog_path_.string() + " is empty";
   } else {
     try {
       catalog_ = std::make_unique<discovery::Catalog>(catalog_path_);
+      if (!catalog_->writable()) {
+        catalog_.reset();
+        labelling_off_ = "the catalog " + catalog_path_.string() + " is write-protected";
+      }
     } catch (const std::exception& e) {
       labelling_off_ = e.what();
     }
@@ -139,6 +162,9 @@ ViewData::ViewData(const ViewSettings& settings) : settings_(settings) {
     }
   }
 
+}
+
+void ViewData::loadScenes() {
   scenes_.resize(hypotheses_.scenes.size());
   ProgressBar progress("reading scenes", scenes_.size());
   for (std::size_t i = 0; i < scenes_.size(); ++i) {
@@ -146,6 +172,7 @@ ViewData::ViewData(const ViewSettings& settings) : settings_(settings) {
     progress.advance();
   }
   progress.finish();
+  ready_ = true;
 }
 
 void ViewData::loadScene(std::size_t index, ViewScene& scene) {
@@ -158,7 +185,7 @@ void ViewData::loadScene(std::size_t index, ViewScene& scene) {
     if (mesh.triangles.empty()) throw InputError(mesh_file, "has no triangles to show");
     const report::ViewMesh view =
         report::viewMesh(mesh, hypotheses_.hypotheses, record.mesh, settings_.max_preview_triangles);
-    scene.payload = report::meshViewPayload(view);
+    scene.payload = std::make_shared<const std::string>(report::meshViewPayload(view));
     scene.vertices = mesh.positions.size();
     scene.faces = mesh.triangles.size();
     scene.preview_vertices = view.preview.mesh.positions.size();
@@ -200,6 +227,7 @@ void ViewData::findInCatalog(const report::SceneRecord& record, const fs::path& 
     if (!id) {
       scene.label_error = "the catalog " + catalog_path_.string() + " does not hold this scene " +
                           "(run discover on it with --catalog " + catalog_path_.string() + ")";
+      log::warning("scene " + record.mesh + " cannot be labelled: " + scene.label_error);
       return;
     }
     // Hypotheses are candidates that survived suppression: the same vertex list.
@@ -249,21 +277,22 @@ ViewServer::ViewServer(ViewData& data, const ServeAddress& address)
 HttpReply ViewServer::route(const HttpRequest& request) {
   const std::string_view path = request.path;
   if (request.method == "POST") {
-    if (path == "/api/label") return label(request);
-    if (path == "/api/undo") return undo(request);
-    return jsonError(405, "POST is taken only by /api/label and /api/undo");
+    if (path != "/api/label" && path != "/api/undo") {
+      return jsonError(405, "POST is taken only by /api/label and /api/undo");
+    }
+    if (!data_.ready()) return jsonError(503, "still reading the scenes: ask again in a moment");
+    return path == "/api/label" ? label(request) : undo(request);
   }
   if (path == "/" || path == "/index.html") {
-    return HttpReply::bytes("text/html; charset=utf-8", std::string(kViewPage));
+    return HttpReply::staticBytes("text/html; charset=utf-8", kViewPage);
   }
   constexpr const char* kScript = "text/javascript; charset=utf-8";
-  if (path == "/assets/three.min.js") return HttpReply::bytes(kScript, std::string(report::threeJs()));
+  if (path == "/assets/three.min.js") return HttpReply::staticBytes(kScript, report::threeJs());
   if (path == "/assets/OrbitControls.js") {
-    return HttpReply::bytes(kScript, std::string(report::orbitControlsJs()));
+    return HttpReply::staticBytes(kScript, report::orbitControlsJs());
   }
-  if (path == "/assets/mesh_view.js") {
-    return HttpReply::bytes(kScript, std::string(report::meshViewJs()));
-  }
+  if (path == "/assets/mesh_view.js") return HttpReply::staticBytes(kScript, report::meshViewJs());
+  if (!data_.ready()) return jsonError(503, "still reading the scenes: ask again in a moment");
   if (path == "/api/results") {
     const report::Hypotheses& h = data_.hypotheses();
     Json scenes = Json::array();
@@ -339,7 +368,7 @@ HttpReply ViewServer::route(const HttpRequest& request) {
 HttpReply ViewServer::sceneRoute(const HttpRequest& request, const ViewScene& scene,
                                  std::string_view rest) {
   if (!scene.error.empty()) return jsonError(404, "this scene cannot be shown: " + scene.error);
-  if (rest == "mesh") return HttpReply::bytes("application/octet-stream", scene.payload);
+  if (rest == "mesh") return HttpReply::sharedBytes("application/octet-stream", scene.payload);
   constexpr std::string_view kHypotheses = "hypotheses/", kSegments = "segments/";
   const auto numberBefore = [](std::string_view text, std::string_view suffix) {
     if (text.size() <= suffix.size() || text.substr(text.size() - suffix.size()) != suffix) {
@@ -373,7 +402,10 @@ HttpReply ViewServer::sceneRoute(const HttpRequest& request, const ViewScene& sc
                                         : mg_get_var(request.query.c_str(), request.query.size(),
                                                      "vertex", value, sizeof value);
     const std::optional<std::int64_t> vertex = n > 0 ? wholeNumber(value) : std::nullopt;
-    if (!vertex) return jsonError(400, "give ?vertex=N, a vertex of the preview mesh");
+    if (!vertex || static_cast<std::uint64_t>(*vertex) >= scene.preview_vertices) {
+      return jsonError(400, "give ?vertex=N, a vertex of the preview mesh (0 to " +
+                                std::to_string(scene.preview_vertices) + " - 1)");
+    }
     std::vector<std::pair<std::size_t, std::int64_t>> found;  // (size, id)
     for (const ViewScene::Segment& s : scene.segments) {
       if (std::binary_search(s.preview.begin(), s.preview.end(),
@@ -435,7 +467,7 @@ HttpReply ViewServer::label(const HttpRequest& request) {
     if (!value) return jsonError(400, "a label is object, not_object, unsure or null");
   }
   const std::optional<std::string> by = labellerOf(body, data_.settings().labeller);
-  if (!by) return jsonError(400, "\"by\" is a name of 1 to 64 characters, without control characters");
+  if (!by) return jsonError(400, "\"by\" is a name of 1 to 64 characters, not only spaces, without control or direction characters");
   const auto id = segment->get<std::int64_t>();
   // Only segments of the scenes shown: the page labels what it shows.
   const ViewScene* owner = nullptr;
@@ -467,20 +499,25 @@ HttpReply ViewServer::undo(const HttpRequest& request) {
     return jsonError(400, "give \"event\": the id of the label event to undo");
   }
   const std::optional<std::string> by = labellerOf(body, data_.settings().labeller);
-  if (!by) return jsonError(400, "\"by\" is a name of 1 to 64 characters, without control characters");
+  if (!by) return jsonError(400, "\"by\" is a name of 1 to 64 characters, not only spaces, without control or direction characters");
   if (!data_.catalog()) return jsonError(409, "labelling is off: " + data_.labellingOff());
   const auto id = event->get<std::int64_t>();
   std::lock_guard<std::mutex> lock(data_.catalogMutex());
   try {
     // Only events of the scenes shown: the page undoes what it labelled.
-    bool shown = false;
+    std::optional<discovery::LabelEvent> found;
     for (const ViewScene& s : data_.scenes()) {
-      if (!s.catalog_scene || shown) continue;
+      if (!s.catalog_scene || found) continue;
       for (const discovery::LabelEvent& e : data_.catalog()->labelEvents(*s.catalog_scene)) {
-        shown |= e.id == id;
+        if (e.id == id) found = e;
       }
     }
-    if (!shown) return jsonError(404, "no such label event among these scenes");
+    if (!found) return jsonError(404, "no such label event among these scenes");
+    // An undo takes back one's own label, never somebody else's.
+    if (found->by != *by) {
+      return jsonError(409, "that label was made by " + found->by + ", not by " + *by +
+                                ": label the segment again instead");
+    }
     const discovery::LabelEvent e = data_.catalog()->undoLabel(id, *by);
     Json j = eventJson(e);
     j["progress"] = countsJson(data_.catalog()->labelCounts(e.scene_id));

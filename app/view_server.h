@@ -1,6 +1,7 @@
 #pragma once
 
 #include <cstddef>
+#include <atomic>
 #include <cstdint>
 #include <filesystem>
 #include <memory>
@@ -30,7 +31,7 @@ struct ViewScene {
   std::string name;   ///< SceneRecord::mesh
   std::string error;  ///< why it cannot be shown (its mesh is missing or damaged); empty when fine
   std::size_t vertices = 0, faces = 0, preview_vertices = 0, preview_faces = 0;
-  std::string payload;                   ///< report::meshViewPayload
+  std::shared_ptr<const std::string> payload;  ///< report::meshViewPayload
   std::vector<std::int32_t> vertex_map;  ///< full mesh vertex -> preview vertex (or -1)
   /// Per hypothesis of this scene (by rank), its vertices on the preview.
   std::vector<std::pair<std::size_t, std::vector<std::uint32_t>>> hypothesis_vertices;
@@ -52,8 +53,13 @@ struct ViewScene {
 /// scene whose mesh cannot be read is kept and shown, not thrown), and the catalog's candidates.
 class ViewData {
  public:
-  /// Throws InputError when DIR holds no results (no or a damaged hypotheses.json).
+  /// Reads hypotheses.json, the overview's camera and opens the catalog. Throws InputError when
+  /// DIR holds no results (no or a damaged hypotheses.json).
   explicit ViewData(const ViewSettings& settings);
+  /// Reads every scene's mesh and candidates (the long part: the server answers "not yet" till
+  /// then). Call once, before scenes().
+  void loadScenes();
+  bool ready() const { return ready_.load(); }
 
   const ViewSettings& settings() const { return settings_; }
   const report::Hypotheses& hypotheses() const { return hypotheses_; }
@@ -82,6 +88,7 @@ class ViewData {
   std::string camera_json_;
   std::unique_ptr<discovery::Catalog> catalog_;
   std::mutex catalog_mutex_;
+  std::atomic<bool> ready_{false};
 };
 
 /// The viewer's routes, on http_server.h's server:
@@ -99,6 +106,8 @@ class ViewData {
 ///   GET  /results/NAME                       a file of the results folder, read-only
 class ViewServer {
  public:
+  /// Starts serving `data`: before data.ready() the API answers 503 (the page waits and asks
+  /// again).
   ViewServer(ViewData& data, const ServeAddress& address);
   ViewServer(const ViewServer&) = delete;
   ViewServer& operator=(const ViewServer&) = delete;

@@ -930,6 +930,8 @@ std::vector<RecurrenceEntry> Catalog::recurrenceEntries() const {
   return out;
 }
 
+bool Catalog::writable() const { return sqlite3_db_readonly(impl_->connection.db, "main") == 0; }
+
 std::size_t Catalog::segmentCount() const {
   Statement& s = impl_->count_segments->start();
   const std::size_t n = s.step("counting segments") ? static_cast<std::size_t>(s.integer(0)) : 0;

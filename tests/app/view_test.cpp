@@ -6,10 +6,14 @@
 // keyboard arrive in the catalog, and train on them gives a model discover accepts.
 
 #include <gtest/gtest.h>
+#include <poll.h>
 #include <sqlite3.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <csignal>
 #include <cstring>
 #include <filesystem>
@@ -90,6 +94,8 @@ std::unique_ptr<BackgroundProcess> startView(const fs::path& dir, int* port,
   auto view = std::make_unique<BackgroundProcess>(args);
   *port = portOf(view->waitForLine("viewer", 60));
   EXPECT_GT(*port, 0) << view->out() << view->err();
+  // It listens first and reads the scenes after; this line says it has.
+  EXPECT_FALSE(view->waitForLine("scenes", 60).empty()) << view->out() << view->err();
   return view;
 }
 
@@ -214,6 +220,7 @@ TEST(ViewServer, HostileAndMalformedRequestsGet4xxAndTheCatalogStaysWhole) {
     EXPECT_EQ(a.body.find("root:"), std::string::npos) << target;
   }
   EXPECT_EQ(get(port, "/api/scenes/0/at?vertex=x").status, 400);
+  EXPECT_EQ(get(port, "/api/scenes/0/at?vertex=4294969232").status, 400) << "no 32-bit wrap";
   EXPECT_EQ(get(port, "/api/results", "evil.example:" + std::to_string(port)).status, 403);
 
   // Labels: JSON only, from this server's own pages, small, well-formed.
@@ -235,6 +242,22 @@ TEST(ViewServer, HostileAndMalformedRequestsGet4xxAndTheCatalogStaysWhole) {
                  R"({"segment": )" + std::to_string(id) + R"(, "label": "object", "by": "a\u0007b"})")
                 .status,
             400);
+  for (const char* by : {R"("   ")", R"("a\u202eb")", R"("a\u0085b")", R"("a\u2028b")"}) {
+    EXPECT_EQ(post(port, "/api/label",
+                   R"({"segment": )" + std::to_string(id) + R"(, "label": "object", "by": )" + by +
+                       "}")
+                  .status,
+              400)
+        << by;
+  }
+  // 64 characters are a name, even when they take 128 bytes.
+  std::string accents;
+  for (int i = 0; i < 64; ++i) accents += "\u00e9";
+  const Answer long_name = post(port, "/api/label", R"({"segment": )" + std::to_string(id) +
+                                                        R"(, "label": "object", "by": ")" + accents + "\"}");
+  EXPECT_EQ(long_name.status, 200) << long_name.body;
+  EXPECT_EQ(post(port, "/api/label", R"({"segment": )" + std::to_string(id) + R"(, "label": null})").status,
+            200);
   EXPECT_EQ(post(port, "/api/label", R"({"segment": 987654321, "label": "object"})").status, 404);
   EXPECT_EQ(post(port, "/api/undo", R"({"event": 987654321})").status, 404);
   EXPECT_EQ(post(port, "/api/state", "{}").status, 405);
@@ -249,6 +272,34 @@ TEST(ViewServer, HostileAndMalformedRequestsGet4xxAndTheCatalogStaysWhole) {
                                       "\r\n\r\n{\"segment\": 1")
                 .status,
             400);
+  // A body that trickles in is cut off: one byte every 1.5 s gets a 408 (or a closed connection)
+  // well before the 90 bytes it announced, so a slow client cannot hold a server thread.
+  {
+    const int fd = testing::connectTo(port);
+    ASSERT_GE(fd, 0);
+    const std::string head = "POST /api/label HTTP/1.1\r\nHost: 127.0.0.1:" + std::to_string(port) +
+                             "\r\nContent-Type: application/json\r\nContent-Length: 90\r\n\r\n";
+    ASSERT_EQ(::send(fd, head.data(), head.size(), MSG_NOSIGNAL), static_cast<ssize_t>(head.size()));
+    const auto start = std::chrono::steady_clock::now();
+    std::string reply;
+    for (int i = 0; i < 30 && reply.empty(); ++i) {
+      if (::send(fd, " ", 1, MSG_NOSIGNAL) != 1) break;  // the server has closed it
+      pollfd p{fd, POLLIN, 0};
+      if (::poll(&p, 1, 1500) > 0) {
+        char buffer[512];
+        const ssize_t n = ::recv(fd, buffer, sizeof buffer, 0);
+        if (n <= 0) break;
+        reply.assign(buffer, static_cast<std::size_t>(n));
+      }
+    }
+    ::close(fd);
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    EXPECT_LT(seconds, 20.0) << "the trickling body was not cut off";
+    if (!reply.empty()) {
+      EXPECT_EQ(reply.substr(0, 12), "HTTP/1.1 408") << reply;
+    }
+  }
   EXPECT_TRUE(catalogLabels(dir / "cat.sqlite").empty()) << "no refused request stored a label";
 
   // A good one is stored, with who and when.
@@ -280,7 +331,10 @@ TEST(ViewServer, UndoPutsTheLabelBackAndRefusesWhenAnotherTabChangedIt) {
   const Answer late = post(port, "/api/undo", R"({"event": )" + first["event"].dump() + "}");
   EXPECT_EQ(late.status, 409) << late.body;
   // The other tab's own undo goes back to the first label.
-  const Answer undone = post(port, "/api/undo", R"({"event": )" + second["event"].dump() + "}");
+  // Nobody undoes another's label: the first tab's undo of the other tab's event is refused.
+  EXPECT_EQ(post(port, "/api/undo", R"({"event": )" + second["event"].dump() + "}").status, 409);
+  const Answer undone = post(port, "/api/undo",
+                             R"({"event": )" + second["event"].dump() + R"(, "by": "other tab"})");
   ASSERT_EQ(undone.status, 200) << undone.body;
   EXPECT_EQ(jsonOf(undone)["label"], "not_object");
   EXPECT_EQ(catalogLabels(dir / "cat.sqlite").at(std::stoll(id)), 0);
@@ -393,6 +447,26 @@ TEST(ViewServer, FoldersWithoutResultsOrWithDamagedFilesSayWhat) {
   const fs::path res = freshCopy(dir);
   testing::expectOneErrorLine(objscan({"view", res.string(), "--serve", "70000"}), 2,
                               "the port must be a number");
+  // Addresses a browser would read otherwise (010 is octal to it), or cannot reach.
+  testing::expectOneErrorLine(objscan({"view", res.string(), "--serve", "127.0.0.010:0"}), 2,
+                              "without leading zeros");
+  testing::expectOneErrorLine(objscan({"view", res.string(), "--serve", "224.0.0.1:0"}), 2,
+                              "multicast");
+  // An empty file named as the catalog is not made a catalog: labelling is off, and it says why.
+  testing::writeBytes(dir / "empty.sqlite", "");
+  {
+    int port = 0;
+    auto view = startView(res, &port, {"--catalog", (dir / "empty.sqlite").string()});
+    ASSERT_GT(port, 0);
+    const json results = jsonOf(get(port, "/api/results"));
+    EXPECT_NE(results.value("labelling_off", "").find("is empty"), std::string::npos)
+        << results.dump();
+    EXPECT_FALSE(results["scenes"][0]["labelling"].get<bool>());
+    view->signal(SIGINT);
+    EXPECT_EQ(view->wait(10), 0);
+    EXPECT_NE(view->err().find("labelling is off"), std::string::npos) << view->err();
+    EXPECT_EQ(fs::file_size(dir / "empty.sqlite"), 0u);
+  }
   // A cut hypotheses.json: one error line naming it.
   fs::copy(res, dir / "cut", fs::copy_options::recursive);
   const std::string text = readWholeFile(res / "hypotheses.json");

@@ -166,6 +166,10 @@ class Catalog {
   /// The number of segments of all scenes.
   std::size_t segmentCount() const;
 
+  /// False when SQLite could open the file for reading only (the file is write-protected): every
+  /// write would then fail. (A folder that forbids SQLite's journal is only found by writing.)
+  bool writable() const;
+
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
