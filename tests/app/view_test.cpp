@@ -15,6 +15,7 @@
 #include <atomic>
 #include <chrono>
 #include <csignal>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -490,10 +491,10 @@ TEST(ViewServer, FoldersWithoutResultsOrWithDamagedFilesSayWhat) {
 
 #else  // OBJSCAN_VIEW_PAGE_TEST
 
-/// The page's pixels: how many differ from the empty background, and how many are the
-/// highlight's yellow.
+/// The page's pixels: how many differ from the empty background, and how many turned the
+/// highlight's yellow since the last call (each call keeps the picture for the next).
 struct CanvasPixels {
-  int width = 0, height = 0, drawn = 0, yellow = 0;
+  int width = 0, height = 0, drawn = 0, turned_yellow = 0;
 };
 
 CanvasPixels canvasPixels(testing::ChromiumPage& page) {
@@ -504,19 +505,25 @@ CanvasPixels canvasPixels(testing::ChromiumPage& page) {
     t.width = c.width; t.height = c.height;
     var g = t.getContext('2d');
     g.drawImage(c, 0, 0);
-    var d = g.getImageData(0, 0, t.width, t.height).data, drawn = 0, yellow = 0;
+    var d = g.getImageData(0, 0, t.width, t.height).data, drawn = 0, turned = 0;
+    var before = window.__pixels && window.__pixels.length === d.length ? window.__pixels : null;
     for (var i = 0; i < d.length; i += 4) {
       if (Math.abs(d[i] - 244) + Math.abs(d[i + 1] - 245) + Math.abs(d[i + 2] - 247) > 24) ++drawn;
-      if (d[i] > 150 && d[i + 1] > 110 && d[i + 2] < 90 && d[i] - d[i + 2] > 110) ++yellow;
+      // The highlight is (255, 215, 0) lit by white light: blue stays near 0, green near 0.84 red.
+      var yellow = d[i] > 90 && d[i + 1] > 0.7 * d[i] && d[i + 1] < 0.95 * d[i] && d[i + 2] < 0.2 * d[i];
+      var changed = before && Math.abs(d[i] - before[i]) + Math.abs(d[i + 1] - before[i + 1]) +
+                                  Math.abs(d[i + 2] - before[i + 2]) > 30;
+      if (yellow && changed) ++turned;
     }
-    return {width: t.width, height: t.height, drawn: drawn, yellow: yellow};
+    window.__pixels = d;
+    return {width: t.width, height: t.height, drawn: drawn, turned: turned};
   })())");
   CanvasPixels p;
   if (!r.is_object()) return p;
   p.width = r["width"];
   p.height = r["height"];
   p.drawn = r["drawn"];
-  p.yellow = r["yellow"];
+  p.turned_yellow = r["turned"];
   return p;
 }
 
@@ -548,36 +555,49 @@ TEST(ViewPage, DrawsSelectsAndLabelsInChromiumAndTrainUsesTheLabels) {
   ASSERT_GT(shown.width, 400);
   EXPECT_GT(shown.drawn, shown.width * shown.height / 5) << "the canvas is (nearly) blank";
 
-  // A click on a row of the ranking selects that hypothesis: row, details, download, highlight.
-  auto [rx, ry] = centreOf(page, "#ranking tr[data-rank=\"2\"]");
+  // A click on a row of the ranking selects that hypothesis: row, details, download, and the
+  // camera turned to it, drawn in the highlight (the largest of the first five, so that it is
+  // surely seen).
+  const int rank = page.evaluate("sceneHypotheses().slice(0, 5).reduce(function (a, b) {"
+                                 " return b.vertex_count > a.vertex_count ? b : a; }).rank")
+                       .get<int>();
+  const std::string chosen = std::to_string(rank);
+  auto [rx, ry] = centreOf(page, "#ranking tr[data-rank=\"" + chosen + "\"]");
   page.click(rx, ry);
-  ASSERT_TRUE(page.waitFor("document.body.getAttribute('data-selected') === 'rank:2'", 10));
+  ASSERT_TRUE(
+      page.waitFor("document.body.getAttribute('data-selected') === 'rank:" + chosen + "'", 10));
   EXPECT_EQ(page.evaluate("document.querySelector('#ranking tr.selected').getAttribute('data-rank')"),
-            "2");
-  EXPECT_EQ(page.evaluate("document.getElementById('download').getAttribute('href')"),
-            "/results/objects/rank_002.ply");
-  ASSERT_TRUE(page.waitFor("document.body.getAttribute('data-highlight') === 'rank:2'", 10));
-  EXPECT_GT(canvasPixels(page).yellow, shown.yellow + 50)
-      << "the selected hypothesis is not highlighted";
+            chosen);
+  char file[64];
+  std::snprintf(file, sizeof file, "/results/objects/rank_%03d.ply", rank);
+  EXPECT_EQ(page.evaluate("document.getElementById('download').getAttribute('href')"), file);
+  ASSERT_TRUE(
+      page.waitFor("document.body.getAttribute('data-highlight') === 'rank:" + chosen + "'", 10));
+  EXPECT_GT(canvasPixels(page).turned_yellow, 30) << "the selected hypothesis is not highlighted";
 
-  // A click on the mesh where hypothesis 1 is drawn selects hypothesis 1: the point is found by
-  // projecting its vertices and checking with the page's own picking, then clicked for real.
+  // A click on the mesh where another hypothesis is drawn selects that one: a point of it is
+  // found by projecting its vertices and checking with the page's own picking, then clicked for
+  // real.
   const json point = page.evaluate(R"((function () {
-    var v = state.view, m = v.mesh, box = v.renderer.domElement.getBoundingClientRect();
-    for (var i = 0; i < m.vertices; i += 7) {
-      if (m.ranks[i] !== 1) continue;
+    var v = state.view, m = v.mesh, box = v.renderer.domElement.getBoundingClientRect(), tries = 0;
+    for (var i = 0; i < m.vertices && tries < 300; i += 3) {
+      var rank = m.ranks[i];
+      if (rank === 0 || rank === state.selectedRank) continue;
       var p = new THREE.Vector3(m.positions[3 * i], m.positions[3 * i + 1], m.positions[3 * i + 2]);
       p.project(v.camera);
       var x = box.left + (p.x + 1) / 2 * box.width, y = box.top + (1 - p.y) / 2 * box.height;
-      if (x < box.left + 2 || y < box.top + 2 || x > box.right - 2 || y > box.bottom - 2) continue;
+      if (p.z > 1 || x < box.left + 2 || y < box.top + 2 || x > box.right - 2 || y > box.bottom - 2) continue;
+      ++tries;
       var hit = v.pick(x, y);
-      if (hit >= 0 && m.ranks[hit] === 1) return [x, y];
+      if (hit >= 0 && m.ranks[hit] === rank) return [x, y, rank];
     }
     return null;
   })())");
-  ASSERT_TRUE(point.is_array()) << "hypothesis 1 is nowhere visible";
+  ASSERT_TRUE(point.is_array()) << "no other hypothesis is visible";
   page.click(point[0].get<double>(), point[1].get<double>());
-  EXPECT_TRUE(page.waitFor("document.body.getAttribute('data-selected') === 'rank:1'", 10))
+  EXPECT_TRUE(page.waitFor("document.body.getAttribute('data-selected') === 'rank:" +
+                               point[2].dump() + "'",
+                           10))
       << page.evaluate("document.body.getAttribute('data-selected')").dump();
 
   // Labelling with the keyboard, as the paper's annotate tool: each candidate judged against the
