@@ -103,6 +103,20 @@ std::optional<std::string> labellerOf(const Json& body, const std::string& fallb
   return by;
 }
 
+constexpr const char* kBadLabeller =
+    "\"by\" is a name of 1 to 64 characters, not only spaces, without control or direction "
+    "characters";
+
+/// A POST's body as a JSON object, or nothing (then `error` is the 400 to answer).
+std::optional<Json> objectBody(const HttpRequest& request, HttpReply* error) {
+  Json body = Json::parse(request.body, nullptr, false);
+  if (body.is_discarded() || !body.is_object()) {
+    *error = jsonError(400, "the body is not a JSON object");
+    return std::nullopt;
+  }
+  return body;
+}
+
 Json eventJson(const discovery::LabelEvent& e) {
   Json j = {{"event", e.id},          {"segment", e.segment_id},
             {"label", labelJson(e.label)}, {"previous", labelJson(e.previous)},
@@ -450,8 +464,10 @@ HttpReply ViewServer::sceneRoute(const HttpRequest& request, const ViewScene& sc
 }
 
 HttpReply ViewServer::label(const HttpRequest& request) {
-  const Json body = Json::parse(request.body, nullptr, false);
-  if (body.is_discarded() || !body.is_object()) return jsonError(400, "the body is not JSON");
+  HttpReply refused;
+  const std::optional<Json> parsed = objectBody(request, &refused);
+  if (!parsed) return refused;
+  const Json& body = *parsed;
   const auto segment = body.find("segment");
   if (segment == body.end() || !segment->is_number_integer()) {
     return jsonError(400, "give \"segment\": the id of a candidate segment");
@@ -467,7 +483,7 @@ HttpReply ViewServer::label(const HttpRequest& request) {
     if (!value) return jsonError(400, "a label is object, not_object, unsure or null");
   }
   const std::optional<std::string> by = labellerOf(body, data_.settings().labeller);
-  if (!by) return jsonError(400, "\"by\" is a name of 1 to 64 characters, not only spaces, without control or direction characters");
+  if (!by) return jsonError(400, kBadLabeller);
   const auto id = segment->get<std::int64_t>();
   // Only segments of the scenes shown: the page labels what it shows.
   const ViewScene* owner = nullptr;
@@ -492,14 +508,16 @@ HttpReply ViewServer::label(const HttpRequest& request) {
 }
 
 HttpReply ViewServer::undo(const HttpRequest& request) {
-  const Json body = Json::parse(request.body, nullptr, false);
-  if (body.is_discarded() || !body.is_object()) return jsonError(400, "the body is not JSON");
+  HttpReply refused;
+  const std::optional<Json> parsed = objectBody(request, &refused);
+  if (!parsed) return refused;
+  const Json& body = *parsed;
   const auto event = body.find("event");
   if (event == body.end() || !event->is_number_integer()) {
     return jsonError(400, "give \"event\": the id of the label event to undo");
   }
   const std::optional<std::string> by = labellerOf(body, data_.settings().labeller);
-  if (!by) return jsonError(400, "\"by\" is a name of 1 to 64 characters, not only spaces, without control or direction characters");
+  if (!by) return jsonError(400, kBadLabeller);
   if (!data_.catalog()) return jsonError(409, "labelling is off: " + data_.labellingOff());
   const auto id = event->get<std::int64_t>();
   std::lock_guard<std::mutex> lock(data_.catalogMutex());
