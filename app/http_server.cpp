@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <charconv>
 #include <cstdlib>
 #include <cstring>
@@ -98,9 +99,13 @@ const char* typeOfFile(const fs::path& file) {
   return "application/octet-stream";  // .ply, .sqlite, .oni, ...
 }
 
-void sendHeaders(mg_connection* conn, int status, const char* type, std::uint64_t length) {
+void sendHeaders(mg_connection* conn, int status, const char* type, std::uint64_t length,
+                 const char* content_security_policy = nullptr) {
   mg_response_header_start(conn, status);
   mg_response_header_add(conn, "Content-Type", type, -1);
+  if (content_security_policy) {
+    mg_response_header_add(conn, "Content-Security-Policy", content_security_policy, -1);
+  }
   mg_response_header_add(conn, "Cache-Control", "no-store", -1);
   mg_response_header_add(conn, "X-Content-Type-Options", "nosniff", -1);
   mg_response_header_add(conn, "Content-Length", std::to_string(length).c_str(), -1);
@@ -117,7 +122,10 @@ void send(mg_connection* conn, const HttpReply& r, bool head) {
       send(conn, HttpReply::text(404, "no such file in the results folder"), head);
       return;
     }
-    sendHeaders(conn, 200, typeOfFile(r.file), size);
+    // A results file is the user's data, perhaps from somebody else: a page or picture in it runs
+    // sandboxed (an origin of its own), so it cannot use this server's API as the user.
+    sendHeaders(conn, 200, typeOfFile(r.file), size,
+                "sandbox allow-scripts allow-downloads allow-popups");
     if (head) return;
     const auto start = SteadyClock::now();
     std::string chunk(1 << 16, '\0');
@@ -185,7 +193,9 @@ struct HttpServer::Impl {
   Handler handler;
   HttpServerOptions options;
   mg_context* context = nullptr;
-  int port = 0;  ///< the port bound
+  /// The port bound: known before the server starts when one was asked for, else set right after
+  /// (a request can only come once the port is known to a client, and it is atomic regardless).
+  std::atomic<int> port{0};
 
   /// Whether `host` (a Host header) names this server: the address it listens on, or localhost
   /// on a loopback address, or, listening on every interface, an IPv4 address or this machine's
@@ -354,6 +364,7 @@ HttpServer::HttpServer(const ServeAddress& address, Handler handler,
   char error_text[256] = "";
   unsigned error_code = 0;
   mg_error_data error{&error_code, error_text, sizeof error_text};
+  impl_->port = address.port;
   mg_init_data init{&callbacks, impl_.get(), civetweb_options};
   impl_->context = mg_start2(&init, &error);
   if (!impl_->context) {

@@ -18,8 +18,9 @@
 /// DNS rebinding); only GET and HEAD, and POST where the server takes bodies (405 otherwise); a
 /// request over 16 kB of headers is refused by civetweb; an exception in a handler becomes a 500.
 /// A client that sends its body or reads the reply slowly keeps one of the 8 server threads for
-/// a bounded time only: 10 s for a body, 10 s plus 1 s per 256 kB for a reply; past that its
-/// connection is dropped.
+/// a bounded time only: about 10 s for a body (up to 15 when it stops short), 10 s plus 1 s per
+/// 256 kB for a reply; past that its connection is dropped. A file reply (HttpReply::file) is
+/// sandboxed (Content-Security-Policy): the results folder's pages run in an origin of their own.
 namespace objscan::app {
 
 /// Where the server listens. The address is 127.0.0.1 unless one is given; port 0 takes any free

@@ -78,6 +78,8 @@ int runView(const ViewCommandOptions& options) {
   settings.labeller = options.labeller.empty() ? defaultLabeller() : options.labeller;
   settings.max_preview_triangles = options.max_preview_triangles;
   ViewData data(settings);
+  // Ctrl-C from here on ends the viewer cleanly (exit 0), also while the meshes are read.
+  StopSignals signals;
 
   // Listening before the meshes are read: a port in use is said at once, and the page can be
   // opened while they load (it waits for them).
@@ -117,7 +119,6 @@ int runView(const ViewCommandOptions& options) {
   std::fflush(stdout);
   if (shown == 0) log::warning("no scene of " + options.dir.string() + " can be shown (see above)");
 
-  StopSignals signals;
   const auto start = SteadyClock::now();
   while (!StopSignals::stopRequested() && (!options.wait_s || secondsSince(start) < *options.wait_s)) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));

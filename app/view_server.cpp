@@ -171,6 +171,7 @@ ViewData::ViewData(const ViewSettings& settings) : settings_(settings) {
   if (fs::is_regular_file(camera, ec)) {
     try {
       camera_json_ = report::viewCameraJson(report::readOverviewCamera(camera));
+      if (camera_json_ == "null") camera_json_.clear();
     } catch (const std::exception& e) {  // the view starts from its own camera instead
       log::warning(std::string("the overview camera is not used: ") + e.what());
     }
@@ -221,21 +222,34 @@ void ViewData::loadScene(std::size_t index, ViewScene& scene) {
 
 void ViewData::findInCatalog(const report::SceneRecord& record, const fs::path& mesh_file,
                              ViewScene& scene) {
-  // The id hypotheses.json noted, when the catalog still holds that scene with this mesh's size;
-  // else the newest scene of this mesh's content (a folder written before ids were noted).
   std::optional<std::int64_t> id;
   try {
-    for (const discovery::CatalogScene& s : catalog_->scenes()) {
-      if (record.catalog_scene && s.id == *record.catalog_scene &&
-          s.vertex_count == scene.vertices) {
-        id = s.id;
-      }
+    // Hypotheses are candidates that survived suppression: the same vertex lists. The scene the
+    // labels go to must hold them, whatever the catalog says of its ids.
+    std::map<std::vector<std::int32_t>, std::size_t> rank_of;
+    for (const report::HypothesisRecord& h : hypotheses_.hypotheses) {
+      if (h.scene == record.mesh && !h.vertices.empty()) rank_of.emplace(h.vertices, h.rank);
     }
-    if (!id) {
-      const std::vector<discovery::CatalogScene> same =
-          catalog_->scenesWithHash(discovery::contentHash(mesh_file));
-      for (const discovery::CatalogScene& s : same) {
-        if (s.vertex_count == scene.vertices) id = s.id;
+    const auto holds = [&](std::int64_t scene_id) {
+      std::size_t found = 0;
+      for (const discovery::CatalogSegment& c : catalog_->segments(scene_id, true)) {
+        found += rank_of.count(c.vertices);
+      }
+      return found;
+    };
+    // Among the catalog's scenes of this mesh's content and size (its id noted in hypotheses.json
+    // means something only in the catalog the run used), the one that holds the most of the
+    // hypotheses; the noted one, then the newest, on a tie.
+    const std::string hash = discovery::contentHash(mesh_file);
+    const bool same_catalog = hypotheses_.catalog && fs::path(hypotheses_.catalog->path) == catalog_path_;
+    std::size_t best = 0;
+    for (const discovery::CatalogScene& s : catalog_->scenesWithHash(hash)) {
+      if (s.vertex_count != scene.vertices) continue;
+      const std::size_t n = holds(s.id) * 2 +
+                            (same_catalog && record.catalog_scene == s.id ? 1 : 0);
+      if (!id || n >= best) {
+        id = s.id;
+        best = n;
       }
     }
     if (!id) {
@@ -244,11 +258,8 @@ void ViewData::findInCatalog(const report::SceneRecord& record, const fs::path& 
       log::warning("scene " + record.mesh + " cannot be labelled: " + scene.label_error);
       return;
     }
-    // Hypotheses are candidates that survived suppression: the same vertex list.
-    std::map<std::vector<std::int32_t>, std::size_t> rank_of;
-    for (const report::HypothesisRecord& h : hypotheses_.hypotheses) {
-      if (h.scene == record.mesh && !h.vertices.empty()) rank_of.emplace(h.vertices, h.rank);
-    }
+    DecimatedMesh map_only;  // previewVertices reads only the map
+    map_only.vertex_map = scene.vertex_map;
     for (discovery::CatalogSegment& c : catalog_->segments(*id, true)) {
       ViewScene::Segment s;
       s.id = c.id;
@@ -262,8 +273,6 @@ void ViewData::findInCatalog(const report::SceneRecord& record, const fs::path& 
                                               " names a vertex outside its scene");
         }
       }
-      DecimatedMesh map_only;
-      map_only.vertex_map = scene.vertex_map;  // previewVertices reads only the map
       s.preview = report::previewVertices(map_only, c.vertices);
       scene.segments.push_back(std::move(s));
     }
@@ -492,6 +501,7 @@ HttpReply ViewServer::label(const HttpRequest& request) {
       if (seg.id == id) owner = &s;
     }
   }
+  if (!data_.catalog()) return jsonError(409, "labelling is off: " + data_.labellingOff());
   if (!owner || !owner->catalog_scene) return jsonError(404, "no such segment among these scenes");
   std::lock_guard<std::mutex> lock(data_.catalogMutex());
   try {
@@ -500,7 +510,8 @@ HttpReply ViewServer::label(const HttpRequest& request) {
     j["progress"] = countsJson(data_.catalog()->labelCounts(*owner->catalog_scene));
     return HttpReply::json(dump(j));
   } catch (const std::invalid_argument& e) {
-    return jsonError(400, e.what());
+    // The label and name were checked: the segment has gone (its scene was replaced since).
+    return jsonError(409, e.what());
   } catch (const std::exception& e) {
     log::warning(std::string("a label could not be stored: ") + e.what());
     return jsonError(503, std::string("the label was not stored: ") + e.what());

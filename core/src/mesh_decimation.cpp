@@ -28,7 +28,9 @@ Clustering cluster(const TriangleMesh& mesh, const Eigen::Vector3f& origin, floa
     // 21 bits a coordinate: 2 million cells an axis, far past any preview's grid.
     std::uint64_t key = 0;
     for (int d = 0; d < 3; ++d) {
-      const auto i = static_cast<std::uint64_t>(std::clamp(g[d], 0.0f, 2097151.0f));
+      // A non-finite coordinate (a damaged file) goes to cell 0 rather than into an undefined cast.
+      const float cell = std::isfinite(g[d]) ? std::clamp(g[d], 0.0f, 2097151.0f) : 0.0f;
+      const auto i = static_cast<std::uint64_t>(cell);
       key = (key << 21) | i;
     }
     const auto [it, added] = cells.try_emplace(key, static_cast<std::int32_t>(c.clusters));

@@ -45,7 +45,9 @@ CREATE TABLE label_events (
   previous INTEGER CHECK (previous IN (0, 1, 2)),
   labelled_by TEXT NOT NULL,
   labelled_at TEXT NOT NULL,
-  undoes INTEGER);
+  undoes INTEGER,
+  previous_by TEXT,
+  previous_at TEXT);
 CREATE INDEX label_events_by_scene ON label_events(scene_id);
 CREATE INDEX label_events_by_segment ON label_events(segment_id);
 )sql";
@@ -99,7 +101,8 @@ constexpr const char* kSegmentsWithLabels =
     " FROM segments s LEFT JOIN segment_labels l ON l.segment_id = s.id";
 // The columns of a label event (readEvent()'s order).
 constexpr const char* kEventColumns =
-    "id, segment_id, scene_id, label, previous, labelled_by, labelled_at, undoes";
+    "id, segment_id, scene_id, label, previous, labelled_by, labelled_at, undoes, previous_by, "
+    "previous_at";
 
 /// Now, in ISO 8601 UTC with milliseconds: "2026-11-25T14:51:46.123Z".
 std::string nowUtc() {
@@ -496,7 +499,8 @@ struct Catalog::Impl {
         "WHERE content_hash = ?1 ORDER BY id",
         Access::kRead);
     segment_label = prepare(
-        std::string("SELECT s.scene_id, l.label") + kSegmentsWithLabels + " WHERE s.id = ?1",
+        std::string("SELECT s.scene_id, l.label, l.labelled_by, l.labelled_at") +
+            kSegmentsWithLabels + " WHERE s.id = ?1",
         Access::kWrite);
     put_label = prepare(
         "INSERT INTO segment_labels (segment_id, label, labelled_by, labelled_at) "
@@ -506,14 +510,15 @@ struct Catalog::Impl {
     clear_label = prepare("DELETE FROM segment_labels WHERE segment_id = ?1", Access::kWrite);
     insert_event = prepare(
         "INSERT INTO label_events (segment_id, scene_id, label, previous, labelled_by, "
-        "labelled_at, undoes) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)",
+        "labelled_at, undoes, previous_by, previous_at) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, "
+        "?9)",
         Access::kWrite);
     find_event =
         prepare(std::string("SELECT ") + kEventColumns + " FROM label_events WHERE id = ?1",
                 Access::kWrite);
-    latest_event = prepare(std::string("SELECT ") + kEventColumns +
-                               " FROM label_events WHERE segment_id = ?1 ORDER BY id DESC LIMIT 1",
-                           Access::kWrite);
+    segment_events = prepare(std::string("SELECT ") + kEventColumns +
+                                 " FROM label_events WHERE segment_id = ?1 ORDER BY id",
+                             Access::kWrite);
     list_events = prepare(std::string("SELECT ") + kEventColumns +
                               " FROM label_events WHERE scene_id = ?1 ORDER BY id",
                           Access::kRead);
@@ -600,44 +605,75 @@ struct Catalog::Impl {
     e.by = s.text(5);
     e.at = s.text(6);
     if (!s.isNull(7)) e.undoes = s.integer(7);
+    if (!s.isNull(8)) e.previous_by = s.text(8);
+    if (!s.isNull(9)) e.previous_at = s.text(9);
     return e;
   }
 
+  struct SegmentLabelRow {
+    std::int64_t scene_id = 0;
+    std::optional<int> label;
+    std::string by, at;  ///< empty without a label
+  };
   /// The segment's scene and label; nothing for an unknown segment.
-  std::optional<std::pair<std::int64_t, std::optional<int>>> labelOf(std::int64_t segment_id) {
+  std::optional<SegmentLabelRow> labelOf(std::int64_t segment_id) {
     Statement& s = segment_label->start().bind(1, segment_id);
-    std::optional<std::pair<std::int64_t, std::optional<int>>> found;
-    if (s.step("reading a label")) found.emplace(s.integer(0), optionalLabel(s, 1));
+    std::optional<SegmentLabelRow> found;
+    if (s.step("reading a label")) {
+      found.emplace(SegmentLabelRow{s.integer(0), optionalLabel(s, 1), {}, {}});
+      if (found->label) {
+        found->by = s.text(2);
+        found->at = s.text(3);
+      }
+    }
     s.finish();
     return found;
   }
 
+  /// A segment's events, oldest first.
+  std::vector<LabelEvent> eventsOf(std::int64_t segment_id) {
+    Statement& s = segment_events->start().bind(1, segment_id);
+    std::vector<LabelEvent> out;
+    try {
+      while (s.step("reading label events")) out.push_back(readEvent(s));
+    } catch (...) {
+      s.finish();
+      throw;
+    }
+    s.finish();
+    return out;
+  }
+
   /// Stores one label (or clears it) and its event; inside a transaction the caller holds.
-  /// `scene_id`: the scene the segment must be in (nothing: any). Throws std::invalid_argument
-  /// for an unknown segment or one of another scene.
+  /// `scene_id`: the scene the segment must be in (nothing: any). The label is kept as made by
+  /// `by` at `at`, or, with `undone` (an undo), as the undone event found it: its previous label
+  /// with that label's own who and when (the event records the undoer). Throws
+  /// std::invalid_argument for an unknown segment or one of another scene.
   LabelEvent applyLabel(std::int64_t segment_id, std::optional<std::int64_t> scene_id,
                         std::optional<int> label, const std::string& by, const std::string& at,
-                        std::optional<std::int64_t> undoes) {
+                        const LabelEvent* undone = nullptr) {
     const auto current = labelOf(segment_id);
-    if (!current || (scene_id && current->first != *scene_id)) {
+    if (!current || (scene_id && current->scene_id != *scene_id)) {
       throw std::invalid_argument(
           connection.path.string() + ": segment " + std::to_string(segment_id) + " is not in " +
           (scene_id ? "scene " + std::to_string(*scene_id) : std::string("the catalog")));
     }
     LabelEvent e;
     e.segment_id = segment_id;
-    e.scene_id = current->first;
+    e.scene_id = current->scene_id;
     e.label = label;
-    e.previous = current->second;
+    e.previous = current->label;
+    e.previous_by = current->by;
+    e.previous_at = current->at;
     e.by = by;
     e.at = at;
-    e.undoes = undoes;
+    if (undone) e.undoes = undone->id;
     if (label) {
       Statement& s = put_label->start()
                          .bind(1, segment_id)
                          .bind(2, static_cast<std::int64_t>(*label))
-                         .bind(3, by)
-                         .bind(4, at);
+                         .bind(3, undone && !undone->previous_by.empty() ? undone->previous_by : by)
+                         .bind(4, undone && !undone->previous_at.empty() ? undone->previous_at : at);
       s.step("setting a label");
       s.finish();
     } else {
@@ -668,6 +704,11 @@ struct Catalog::Impl {
     } else {
       s.bindNull(7);
     }
+    if (e.previous) {
+      s.bind(8, e.previous_by).bind(9, e.previous_at);
+    } else {
+      s.bindNull(8).bindNull(9);
+    }
     s.step("recording a label event");
     s.finish();
   }
@@ -697,7 +738,7 @@ struct Catalog::Impl {
   Statement* clear_label = nullptr;
   Statement* insert_event = nullptr;
   Statement* find_event = nullptr;
-  Statement* latest_event = nullptr;
+  Statement* segment_events = nullptr;
   Statement* list_events = nullptr;
   Statement* label_counts = nullptr;
   Statement* recurrence_entries = nullptr;
@@ -763,7 +804,7 @@ std::int64_t Catalog::addScene(const CatalogScene& scene,
                                     std::to_string(*g.label));
       }
       impl_->applyLabel(segment_id, scene_id, g.label,
-                        g.labelled_by.empty() ? "objscan" : g.labelled_by, now, std::nullopt);
+                        g.labelled_by.empty() ? "objscan" : g.labelled_by, now);
     }
   }
   transaction.commit();
@@ -822,7 +863,7 @@ void Catalog::setLabels(std::int64_t scene_id,
   // The time is taken once the write lock is held, so that events' times follow their ids.
   const std::string now = nowUtc();
   for (const auto& [segment_id, label] : segment_labels) {
-    impl_->applyLabel(segment_id, scene_id, label, by, now, std::nullopt);
+    impl_->applyLabel(segment_id, scene_id, label, by, now);
   }
   transaction.commit();
 }
@@ -832,7 +873,7 @@ LabelEvent Catalog::setLabel(std::int64_t segment_id, std::optional<int> label,
   requireLabeller(by);
   if (label) requireLabel(*label, segment_id);
   Transaction transaction(impl_->connection);
-  LabelEvent e = impl_->applyLabel(segment_id, std::nullopt, label, by, nowUtc(), std::nullopt);
+  LabelEvent e = impl_->applyLabel(segment_id, std::nullopt, label, by, nowUtc());
   transaction.commit();
   return e;
 }
@@ -863,23 +904,32 @@ LabelEvent Catalog::undoLabel(std::int64_t event_id, const std::string& by) {
     throw std::invalid_argument(impl_->connection.path.string() + ": no label event " +
                                 std::to_string(event_id));
   }
-  // Only the segment's latest event can be undone: a later one means somebody changed the label
-  // since (even back to the same value), or undid this one already.
-  const std::optional<LabelEvent> latest = impl_->event(impl_->latest_event, undone->segment_id);
-  if (!latest || latest->id != event_id) {
-    const std::string segment = "segment " + std::to_string(undone->segment_id);
-    if (latest && latest->undoes == event_id) {
+  // The event can be undone when nothing after it on the segment is still in effect: each later
+  // event was itself undone (label, relabel, undo, undo goes back two steps). An undo of the
+  // event itself means it was undone already; anything else, that somebody changed the label
+  // since (even back to the same value).
+  std::vector<const LabelEvent*> after;  // later events still in effect
+  const std::vector<LabelEvent> events = impl_->eventsOf(undone->segment_id);
+  const std::string segment = "segment " + std::to_string(undone->segment_id);
+  for (const LabelEvent& x : events) {
+    if (x.id <= event_id) continue;
+    if (x.undoes && !after.empty() && after.back()->id == *x.undoes) {
+      after.pop_back();
+    } else if (x.undoes == event_id && after.empty()) {
       throw LabelConflict("label event " + std::to_string(event_id) + " of " + segment +
-                          " was already undone (by " + latest->by + " at " + latest->at + ")");
+                          " was already undone (by " + x.by + " at " + x.at + ")");
+    } else {
+      after.push_back(&x);
     }
-    throw LabelConflict(segment + "'s label was changed after event " + std::to_string(event_id) +
-                        (latest ? " (to " + labelText(latest->label) + " by " + latest->by +
-                                      " at " + latest->at + ")"
-                                : std::string()) +
-                        ": it is not undone");
   }
-  LabelEvent e =
-      impl_->applyLabel(undone->segment_id, std::nullopt, undone->previous, by, nowUtc(), event_id);
+  if (!after.empty()) {
+    const LabelEvent& latest = *after.back();
+    throw LabelConflict(segment + "'s label was changed after event " + std::to_string(event_id) +
+                        " (to " + labelText(latest.label) + " by " + latest.by + " at " +
+                        latest.at + "): it is not undone");
+  }
+  LabelEvent e = impl_->applyLabel(undone->segment_id, std::nullopt, undone->previous, by,
+                                   nowUtc(), &*undone);
   transaction.commit();
   return e;
 }

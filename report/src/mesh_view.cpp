@@ -99,6 +99,10 @@ std::string viewCameraJson(const OverviewCamera& camera) {
   const Eigen::Vector3f up = camera.T_W_C.linear() * -Eigen::Vector3f::UnitY();
   const double fov = 2.0 * std::atan(0.5 * camera.intrinsics.height_px / camera.intrinsics.fy_px) *
                      180.0 / M_PI;
+  // A damaged file's infinities are no JSON: no camera then (the view finds its own).
+  if (!position.allFinite() || !forward.allFinite() || !up.allFinite() || forward.isZero()) {
+    return "null";
+  }
   const auto triple = [](const Eigen::Vector3f& v) {
     char text[96];
     std::snprintf(text, sizeof text, "[%.6g, %.6g, %.6g]", v.x(), v.y(), v.z());

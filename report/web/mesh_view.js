@@ -96,8 +96,21 @@
     this.resetCamera();
     this.paint();
     this.resize();
-    window.addEventListener("resize", function () { self.resize(); });
+    this.onResize = function () { self.resize(); };
+    window.addEventListener("resize", this.onResize);
   }
+
+  // Lets the view go: its listener, controls, GPU buffers and WebGL context, and its canvas.
+  MeshView.prototype.dispose = function () {
+    window.removeEventListener("resize", this.onResize);
+    this.controls.dispose();
+    this.geometry.dispose();
+    this.object.material.dispose();
+    this.renderer.dispose();
+    if (this.renderer.forceContextLoss) this.renderer.forceContextLoss();
+    var canvas = this.renderer.domElement;
+    if (canvas.parentNode) canvas.parentNode.removeChild(canvas);
+  };
 
   // Looks at the whole mesh from behind and above its sensor's first view (objscan's scenes have
   // y down and z forward, as the camera that made them).

@@ -186,8 +186,16 @@ TEST(ViewServer, ServesTheResultsTheMeshAndTheCandidates) {
   EXPECT_NE(std::find(ids.begin(), ids.end(), segments["segments"][0]["id"].get<std::int64_t>()),
             ids.end());
 
-  // A hypothesis's PLY downloads from the results folder; the page and scripts are served.
-  EXPECT_EQ(get(port, "/results/objects/rank_001.ply").status, 200);
+  // A hypothesis's PLY downloads from the results folder, byte for byte; a page of the folder
+  // runs sandboxed (it cannot use the API as the user); the page and scripts are served.
+  const Answer ply = get(port, "/results/objects/rank_001.ply");
+  EXPECT_EQ(ply.status, 200);
+  EXPECT_EQ(ply.body, readWholeFile(res / "objects" / "rank_001.ply"));
+  const Answer report = get(port, "/results/report.html");
+  EXPECT_EQ(report.status, 200);
+  EXPECT_NE(report.headers.find("Content-Security-Policy: sandbox allow-scripts"), std::string::npos)
+      << report.headers;
+  EXPECT_NE(report.headers.find("Content-Type: text/html"), std::string::npos) << report.headers;
   EXPECT_EQ(get(port, "/").status, 200);
   const Answer three = get(port, "/assets/three.min.js");
   EXPECT_EQ(three.status, 200);
@@ -650,7 +658,7 @@ TEST(ViewPage, DrawsSelectsAndLabelsInChromiumAndTrainUsesTheLabels) {
 
   // z undoes the last label (the catalog forgets it), and it is made again.
   page.key("z");
-  ASSERT_TRUE(page.waitFor("document.body.getAttribute('data-labelled') === '" +
+  ASSERT_TRUE(page.waitFor("!state.busy && document.body.getAttribute('data-labelled') === '" +
                                std::to_string(labelled - 1) + "'",
                            10));
   EXPECT_EQ(catalogLabels(catalog_path).count(last), 0u);

@@ -510,8 +510,11 @@ TEST(CatalogLabels, UndoPutsThePreviousLabelBackAndUndoingAnUndoRedoes) {
   EXPECT_EQ(redo.undoes, undo.id);
   EXPECT_EQ(redo.label, 1);
   EXPECT_EQ(catalog.segments(scene, false)[0].label, 1);
-  EXPECT_EQ(catalog.segments(scene, false)[0].labelled_by, "ben");
-  // Only a segment's latest event can be undone.
+  // The label that comes back is ana's (second's), with its time: not credited to ben.
+  EXPECT_EQ(catalog.segments(scene, false)[0].labelled_by, "ana");
+  EXPECT_EQ(catalog.segments(scene, false)[0].labelled_at, second.at);
+  EXPECT_EQ(redo.by, "ben");
+  // Events in effect after it (the redo) keep the first from being undone.
   EXPECT_THROW(catalog.undoLabel(first.id, "ana"), LabelConflict);
   EXPECT_EQ(catalog.labelEvents(scene).size(), 4u);
   // Undoing a first label clears it (it had none before).
@@ -521,6 +524,30 @@ TEST(CatalogLabels, UndoPutsThePreviousLabelBackAndUndoingAnUndoRedoes) {
   EXPECT_EQ(cleared.previous, 2);
   EXPECT_FALSE(catalog.segments(scene, false)[1].label.has_value());
   EXPECT_EQ(catalog.labelCounts(scene).labelled, 1u);
+}
+
+TEST(CatalogLabels, UndoingTwiceGoesBackTwoStepsWithTheEarlierLabellersNames) {
+  TempDir dir;
+  Catalog catalog(dir / "catalog.sqlite");
+  const std::vector<std::int64_t> ids = unlabelledScene(catalog, 1);
+  const std::int64_t scene = catalog.scenes()[0].id;
+  const LabelEvent a = catalog.setLabel(ids[0], 1, "ana");
+  const LabelEvent b = catalog.setLabel(ids[0], 0, "ben");
+  EXPECT_EQ(b.previous_by, "ana");
+  EXPECT_EQ(b.previous_at, a.at);
+  // ben undoes his label: ana's comes back as hers, at her time.
+  catalog.undoLabel(b.id, "ben");
+  CatalogSegment s = catalog.segments(scene, false)[0];
+  EXPECT_EQ(s.label, 1);
+  EXPECT_EQ(s.labelled_by, "ana");
+  EXPECT_EQ(s.labelled_at, a.at);
+  // b is undone, so a is the label in effect and can be undone too: no label at all.
+  EXPECT_THROW(catalog.undoLabel(b.id, "ben"), LabelConflict);  // already undone
+  const LabelEvent second_undo = catalog.undoLabel(a.id, "ana");
+  EXPECT_FALSE(second_undo.label.has_value());
+  EXPECT_FALSE(catalog.segments(scene, false)[0].label.has_value());
+  EXPECT_EQ(catalog.labelCounts(scene).labelled, 0u);
+  EXPECT_EQ(catalog.labelEvents(scene).size(), 4u);
 }
 
 TEST(CatalogLabels, UndoAfterSomebodyElsesChangeIsAConflictThatChangesNothing) {

@@ -56,7 +56,10 @@ Answer askRaw(int port, const std::string& request) {
   ::close(fd);
   if (reply.rfind("HTTP/1.", 0) == 0 && reply.size() > 12) answer.status = std::stoi(reply.substr(9, 3));
   const std::size_t body = reply.find("\r\n\r\n");
-  if (body != std::string::npos) answer.body = reply.substr(body + 4);
+  if (body != std::string::npos) {
+    answer.headers = reply.substr(0, body + 2);
+    answer.body = reply.substr(body + 4);
+  }
   return answer;
 }
 

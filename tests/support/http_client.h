@@ -15,6 +15,7 @@ int connectTo(int port);
 
 struct Answer {
   int status = 0;  ///< 0: the server closed the connection without an answer
+  std::string headers;  ///< the status line and headers, as sent
   std::string body;
 };
 

@@ -64,6 +64,9 @@ struct LabelEvent {
   std::optional<int> previous;         ///< the label before; nothing: it had none
   std::string by, at;                  ///< who, and when (ISO 8601 UTC)
   std::optional<std::int64_t> undoes;  ///< the event this one undid
+  /// Who made the previous label, and when (empty when it had none): an undo puts it back with
+  /// them, so the label is never credited to the person who undid.
+  std::string previous_by, previous_at;
 };
 
 /// How many of a scene's segments carry each label.

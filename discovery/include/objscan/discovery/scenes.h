@@ -154,11 +154,12 @@ struct CatalogTrainingSet {
   std::vector<std::int64_t> segment_ids;
   std::size_t scenes = 0;  ///< scenes with at least one label used
   std::size_t unsure = 0;  ///< left out: unsure
-  std::size_t other_settings =
-      0;  ///< left out: labelled segments of scenes measured with other settings
+  /// Left out: labelled segments of scenes measured with other settings.
+  std::size_t other_settings = 0;
 };
 /// Throws InputError naming the catalog when it does not exist or is damaged,
-/// std::invalid_argument for a bad config. Reads the catalog only.
+/// std::invalid_argument for a bad config. Writes nothing of its own; opening a catalog of schema
+/// version 1 upgrades it, as any Catalog does.
 CatalogTrainingSet catalogTrainingSet(const std::filesystem::path& catalog,
                                       const DiscoveryConfig& config);
 

@@ -46,7 +46,7 @@ std::string meshViewPayload(const ViewMesh& view);
 
 /// The overview picture's camera (renders/overview_camera.json) as the view's starting camera, so
 /// that the 3-D view opens on what the pictures show: JSON {"position": [x, y, z], "forward":
-/// [..], "up": [..], "fov_y_deg": f}, world frame, metres.
+/// [..], "up": [..], "fov_y_deg": f}, world frame, metres; "null" when it is not finite.
 std::string viewCameraJson(const OverviewCamera& camera);
 
 /// The vertices of `vertices` (indices into the full mesh) as vertices of the preview: mapped,
