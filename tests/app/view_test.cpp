@@ -682,6 +682,25 @@ TEST(ViewPage, DrawsSelectsAndLabelsInChromiumAndTrainUsesTheLabels) {
   EXPECT_EQ(view->wait(10), 0);
 }
 
+TEST(ViewPage, ADamagedMeshIsSaidInThePage) {
+  TempDir dir;
+  const fs::path res = freshCopy(dir);
+  const std::string mesh = readWholeFile(res / "mesh.ply");
+  testing::writeBytes(res / "mesh.ply", mesh.substr(0, mesh.size() / 3));
+  int port = 0;
+  auto view = startView(res, &port);
+  ASSERT_GT(port, 0);
+  testing::ChromiumPage page;
+  ASSERT_TRUE(page.ok());
+  page.navigate("http://127.0.0.1:" + std::to_string(port) + "/");
+  ASSERT_TRUE(page.waitFor("document.body.getAttribute('data-state') === 'error'", 30));
+  const std::string shown = page.evaluate("document.getElementById('message').textContent");
+  EXPECT_NE(shown.find("cannot be shown"), std::string::npos) << shown;
+  EXPECT_NE(shown.find("mesh.ply"), std::string::npos) << shown;
+  view->signal(SIGINT);
+  EXPECT_EQ(view->wait(10), 0);
+}
+
 TEST(ViewPage, TheReportsInlineViewDrawsOfflineAndLinksTheViewerWhenServed) {
   TempDir dir;
   const fs::path res = freshCopy(dir);
