@@ -229,14 +229,20 @@ OrganizedCloud emptyCloud(const PcdHeader& h, const Layout& l) {
   return c;
 }
 
-void setPoint(OrganizedCloud& c, std::size_t i, double x, double y, double z) {
-  if (std::isfinite(x) && std::isfinite(y) && std::isfinite(z)) {
-    c.points_C[i] = Eigen::Vector3d(x, y, z).cast<float>();
+/// A point is kept when its coordinates are finite floats; NaN (no reading) and infinities leave
+/// it missing. A finite value past float's range cannot come from a float field: corrupt.
+void setPoint(const fs::path& path, OrganizedCloud& c, std::size_t i, double x, double y,
+              double z) {
+  if (!(std::isfinite(x) && std::isfinite(y) && std::isfinite(z))) return;
+  constexpr double kMax = std::numeric_limits<float>::max();
+  if (std::fabs(x) > kMax || std::fabs(y) > kMax || std::fabs(z) > kMax) {
+    throw InputError(path, "point " + std::to_string(i) + " has a coordinate past float's range");
   }
+  c.points_C[i] = Eigen::Vector3d(x, y, z).cast<float>();
 }
 
 std::uint32_t labelValue(const fs::path& path, double v, std::size_t point) {
-  if (v < 0 || v > std::numeric_limits<std::uint32_t>::max()) {
+  if (!(v >= 0 && v <= std::numeric_limits<std::uint32_t>::max())) {  // NaN too
     throw InputError(path,
                      "point " + std::to_string(point) + " has a label outside 0 .. 4294967295");
   }
@@ -253,7 +259,7 @@ OrganizedCloud decodeBinary(const fs::path& path, const PcdHeader& h, const Layo
                : data + i * h.point_bytes + f.offset;
   };
   for (std::size_t i = 0; i < h.points; ++i) {
-    setPoint(c, i, binaryValue(*l.x, at(*l.x, i)), binaryValue(*l.y, at(*l.y, i)),
+    setPoint(path, c, i, binaryValue(*l.x, at(*l.x, i)), binaryValue(*l.y, at(*l.y, i)),
              binaryValue(*l.z, at(*l.z, i)));
     if (l.rgb) c.colors[i] = unpackColour(colourBits(at(*l.rgb, i)));
     if (l.label) c.labels[i] = labelValue(path, binaryValue(*l.label, at(*l.label, i)), i);
@@ -296,12 +302,23 @@ OrganizedCloud decodeAscii(const fs::path& path, const PcdHeader& h, const Layou
       }
       return v;
     };
-    setPoint(c, i, number(index(l.x)), number(index(l.y)), number(index(l.z)));
+    setPoint(path, c, i, number(index(l.x)), number(index(l.y)), number(index(l.z)));
     if (l.rgb) {
       const double v = number(index(l.rgb));
-      const std::uint32_t bits = l.rgb->type == 'F'
-                                     ? std::bit_cast<std::uint32_t>(static_cast<float>(v))
-                                     : static_cast<std::uint32_t>(v);
+      // The packed colour must fit its 32-bit field: a value outside it names no colour (and
+      // converting it would be undefined).
+      const bool fits = l.rgb->type == 'F' ? !(std::fabs(v) > std::numeric_limits<float>::max()) ||
+                                                 std::isinf(v)
+                        : l.rgb->type == 'I' ? v >= -2147483648.0 && v <= 2147483647.0
+                                             : v >= 0.0 && v <= 4294967295.0;
+      if (!fits) {
+        throw InputError(path, "point " + std::to_string(i) + "'s rgb " + tokens[index(l.rgb)].substr(0, 30) +
+                                   " does not fit its 32-bit field");
+      }
+      const std::uint32_t bits =
+          l.rgb->type == 'F'   ? std::bit_cast<std::uint32_t>(static_cast<float>(v))
+          : l.rgb->type == 'I' ? static_cast<std::uint32_t>(static_cast<std::int32_t>(v))
+                               : static_cast<std::uint32_t>(v);
       c.colors[i] = unpackColour(bits);
     }
     if (l.label) {

@@ -161,6 +161,25 @@ TEST(Pcd, BadFilesGetOneClearError) {
   expect("noxyz.pcd", "FIELDS a b\nSIZE 4 4\nTYPE F F\nWIDTH 1\nHEIGHT 1\nDATA ascii\n1 2\n",
          "no x y z");
   expect("text.pcd", asciiPcd(p).replace(asciiPcd(p).size() - 8, 4, "abcd"), "not a number");
+  // Values a 32-bit field or a float cannot hold (converting them was undefined behaviour, found
+  // by fuzz_pcd: the input it found is tests/core/fuzz_regressions/).
+  const std::string two = "VERSION 0.7\nFIELDS x y z rgb\nSIZE 4 4 4 4\nTYPE F F F TYPE\nCOUNT 1 1 1 1\n"
+                          "WIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA ascii\n";
+  const auto withType = [&](const char* type, const std::string& values) {
+    std::string text = two;
+    text.replace(text.find("TYPE\n"), 4, type);
+    return text + values + "\n";
+  };
+  expect("urgb.pcd", withType("U", "0 0 1 1.002e+11"), "does not fit its 32-bit field");
+  expect("nrgb.pcd", withType("U", "0 0 1 -1"), "does not fit its 32-bit field");
+  expect("nanrgb.pcd", withType("U", "0 0 1 nan"), "does not fit its 32-bit field");
+  expect("irgb.pcd", withType("I", "0 0 1 3e9"), "does not fit its 32-bit field");
+  expect("frgb.pcd", withType("F", "0 0 1 1e300"), "does not fit its 32-bit field");
+  expect("far.pcd", withType("U", "1e300 0 1 0"), "past float's range");
+  const std::filesystem::path found =
+      std::filesystem::path(OBJSCAN_SOURCE_DIR) / "tests/core/fuzz_regressions" /
+                         "pcd_ascii_rgb_past_32_bits.pcd";
+  expectInputError([&] { readPcd(found); }, found, "does not fit its 32-bit field");
 }
 
 TEST(OrganizedMesh, JoinsNeighboursFacingTheCameraAndCutsDepthJumps) {
