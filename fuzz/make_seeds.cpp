@@ -14,6 +14,8 @@
 #include "objscan/core/intrinsics.h"
 #include "objscan/core/ply_io.h"
 #include "objscan/core/trajectory.h"
+#include "objscan/discovery/catalog.h"
+#include "objscan/discovery/scoring.h"
 #include "objscan/report/results_io.h"
 
 namespace fs = std::filesystem;
@@ -167,6 +169,37 @@ void make(const fs::path& out) {
       << R"({"view": "trajectory", "T_W_C": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]],
 "intrinsics": {"fx": 570.3, "fy": 570.3, "cx": 319.5, "cy": 239.5, "width": 640, "height": 480}})";
   fs::remove_all(scratch);
+
+  const fs::path model = out / "fuzz_model";
+  fs::create_directories(model);
+  discovery::MeasureNormaliser normaliser;
+  normaliser.mean = {0.5, 0.2, 0.8, 0.7, 0.003, 1.0};
+  normaliser.sd = {0.1, 0.1, 0.1, 0.1, 0.001, 0.5};
+  discovery::ObjectnessModel::average(normaliser).save(model / "average.yml");
+
+  const fs::path catalog_dir = out / "fuzz_catalog";
+  fs::create_directories(catalog_dir);
+  {
+    discovery::Catalog catalog(catalog_dir / "seed.sqlite");
+    discovery::CatalogScene scene;
+    scene.name = "scene.ply";
+    scene.content_hash = "0123456789abcdef";
+    scene.vertex_count = 4;
+    scene.settings = "settings";
+    discovery::CatalogSegment segment;
+    segment.scale = 1.0f;
+    segment.extents = {0.1f, 0.05f, 0.02f};
+    segment.vertices = {0, 1, 2};
+    segment.label = 1;
+    const std::int64_t id = catalog.addScene(scene, {segment, segment});
+    const auto rows = catalog.segments(id, false);
+    const discovery::LabelEvent e = catalog.setLabel(rows.at(1).id, 0, "seed");
+    catalog.undoLabel(e.id, "seed");
+  }
+  std::error_code ec;
+  for (const char* extra : {"-journal", "-wal", "-shm"}) {
+    fs::remove(catalog_dir / (std::string("seed.sqlite") + extra), ec);
+  }
 }
 
 }  // namespace

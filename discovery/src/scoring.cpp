@@ -7,6 +7,8 @@
 #include <random>
 #include <sstream>
 #include <stdexcept>
+#include <string>
+#include <string_view>
 
 #include <opencv2/core.hpp>
 #include <opencv2/ml.hpp>
@@ -454,6 +456,21 @@ ObjectnessModel ObjectnessModel::load(const std::filesystem::path& path) {
   const std::string text = readWholeFile(path);
   const auto bad = [&](const std::string& problem) { return InputError(path, problem); };
   if (text.empty()) throw bad("empty file, not an objscan model");
+  // OpenCV 4.6's FileStorage reader never returns on some malformed YAML (found by fuzz_model:
+  // "%YAML:1.\n----s\n-  -\n " loops forever). A model file is what save() writes: YAML 1.0
+  // with its document marker alone on the second line, text without control bytes. Anything else
+  // is refused before OpenCV sees it.
+  constexpr std::string_view kStart = "%YAML:1.0\n---\n";
+  if (text.compare(0, kStart.size(), kStart) != 0) {
+    throw bad("not an objscan model file (it starts \"%YAML:1.0\" and \"---\", as `objscan train` "
+              "writes it)");
+  }
+  for (const char c : text) {
+    const auto u = static_cast<unsigned char>(c);
+    if ((u < 0x20 && c != '\n' && c != '\r' && c != '\t') || u == 0x7f) {
+      throw bad("not an objscan model file (it holds control bytes: not text)");
+    }
+  }
   auto impl = std::make_shared<Impl>();
   try {
     cv::FileStorage fs(text, cv::FileStorage::READ | cv::FileStorage::MEMORY);

@@ -168,8 +168,12 @@ TEST(ObjectnessModel, WrongFilesAreInputErrorsNamingTheFile) {
   testing::writeBytes(dir / "empty.yml", "");
   testing::writeBytes(dir / "bad_kind.yml",
                       "%YAML:1.0\n---\nobjscan_model: 1\nkind: random_forest\n");
-  for (const char* name :
-       {"mesh.ply", "other.yml", "newer.yml", "empty.yml", "bad_kind.yml", "missing.yml"}) {
+  // OpenCV 4.6's YAML reader never returns on this (fuzz_model found it): refused before it.
+  testing::writeBytes(dir / "hang.yml", "%YAML:1.\n----s\n-  -\n ");
+  testing::writeBytes(dir / "control.yml",
+                      std::string("%YAML:1.0\n---\nobjscan_model: 1\n\x02kind: average\n"));
+  for (const char* name : {"mesh.ply", "other.yml", "newer.yml", "empty.yml", "bad_kind.yml",
+                           "missing.yml", "hang.yml", "control.yml"}) {
     try {
       ObjectnessModel::load(dir / name);
       ADD_FAILURE() << name << " loaded";
