@@ -648,7 +648,10 @@ TEST(ViewPage, DrawsSelectsAndLabelsInChromiumAndTrainUsesTheLabels) {
     objects += object;
     others += other;
   }
-  ASSERT_GE(objects, 6) << "the scene has too few object candidates for this test";
+  std::size_t available = 0;
+  for (const auto& [segment, iou] : best_iou) available += iou >= 0.5 ? 1 : 0;
+  ASSERT_GE(objects, 6) << "the scene has too few object candidates for this test: " << available
+                        << " of " << best_iou.size() << " at IoU >= 0.5";
   ASSERT_GE(others, 6);
   std::string by;
   EXPECT_EQ(catalogLabels(catalog_path, &by), pressed) << "the catalog holds what was typed";
