@@ -114,6 +114,15 @@ void make(const fs::path& out) {
   }
   writeTumTrajectory(tum / "seed0.txt", t);
 
+  const fs::path tum_folder = out / "fuzz_tum_folder";
+  fs::create_directories(tum_folder);
+  std::ofstream(tum_folder / "associations") << "1305031102.175304 depth/1.png 1305031102.175304 rgb/1.png\n"
+                                                 "1305031102.2 depth/2.png 1305031102.21 rgb/2.png\n";
+  std::ofstream(tum_folder / "lists")
+      << "\n=====\n# depth maps\n1305031102.175304 depth/1.png\n1305031102.2 depth/2.png\n=====\n"
+         "# color images\n1305031102.175304 rgb/1.png\n1305031102.21 rgb/2.png\n=====\n"
+         "1305031102.175304 0 0 0 0 0 0 1\n";
+
   const fs::path intrinsics = out / "fuzz_intrinsics_json";
   fs::create_directories(intrinsics);
   writeIntrinsicsJson(intrinsics / "seed0.json", Intrinsics::xtionDefault());
