@@ -195,6 +195,7 @@ void ViewData::loadScene(std::size_t index, ViewScene& scene) {
   scene.name = record.mesh;
   fs::path mesh_file;
   TriangleMesh mesh;
+  std::vector<std::int32_t> vertex_map;  // full mesh -> preview
   try {
     mesh = report::readSceneMesh(settings_.dir, record, &mesh_file);
     if (mesh.triangles.empty()) throw InputError(mesh_file, "has no triangles to show");
@@ -205,23 +206,23 @@ void ViewData::loadScene(std::size_t index, ViewScene& scene) {
     scene.faces = mesh.triangles.size();
     scene.preview_vertices = view.preview.mesh.positions.size();
     scene.preview_faces = view.preview.mesh.triangles.size();
-    scene.vertex_map = view.preview.vertex_map;
     for (const report::HypothesisRecord& h : hypotheses_.hypotheses) {
       if (h.scene == record.mesh) {
-        scene.hypothesis_vertices.emplace_back(h.rank,
-                                               report::previewVertices(view.preview, h.vertices));
+        scene.hypothesis_vertices.emplace_back(
+            h.rank, report::previewVertices(view.preview.vertex_map, h.vertices));
       }
     }
+    vertex_map = view.preview.vertex_map;
   } catch (const std::exception& e) {
     scene.error = e.what();
     log::warning("scene " + record.mesh + " cannot be shown: " + scene.error);
     return;
   }
-  if (catalog_) findInCatalog(record, mesh_file, scene);
+  if (catalog_) findInCatalog(record, mesh_file, vertex_map, scene);
 }
 
 void ViewData::findInCatalog(const report::SceneRecord& record, const fs::path& mesh_file,
-                             ViewScene& scene) {
+                             const std::vector<std::int32_t>& vertex_map, ViewScene& scene) {
   std::optional<std::int64_t> id;
   try {
     // Hypotheses are candidates that survived suppression: the same vertex lists. The scene the
@@ -230,11 +231,9 @@ void ViewData::findInCatalog(const report::SceneRecord& record, const fs::path& 
     for (const report::HypothesisRecord& h : hypotheses_.hypotheses) {
       if (h.scene == record.mesh && !h.vertices.empty()) rank_of.emplace(h.vertices, h.rank);
     }
-    const auto holds = [&](std::int64_t scene_id) {
+    const auto holds = [&](const std::vector<discovery::CatalogSegment>& segments) {
       std::size_t found = 0;
-      for (const discovery::CatalogSegment& c : catalog_->segments(scene_id, true)) {
-        found += rank_of.count(c.vertices);
-      }
+      for (const discovery::CatalogSegment& c : segments) found += rank_of.count(c.vertices);
       return found;
     };
     // Among the catalog's scenes of this mesh's content and size (its id noted in hypotheses.json
@@ -243,13 +242,16 @@ void ViewData::findInCatalog(const report::SceneRecord& record, const fs::path& 
     const std::string hash = discovery::contentHash(mesh_file);
     const bool same_catalog = hypotheses_.catalog && fs::path(hypotheses_.catalog->path) == catalog_path_;
     std::size_t best = 0;
+    std::vector<discovery::CatalogSegment> chosen;  // the chosen scene's, with their vertices
     for (const discovery::CatalogScene& s : catalog_->scenesWithHash(hash)) {
       if (s.vertex_count != scene.vertices) continue;
-      const std::size_t n = holds(s.id) * 2 +
+      std::vector<discovery::CatalogSegment> segments = catalog_->segments(s.id, true);
+      const std::size_t n = holds(segments) * 2 +
                             (same_catalog && record.catalog_scene == s.id ? 1 : 0);
       if (!id || n >= best) {
         id = s.id;
         best = n;
+        chosen = std::move(segments);
       }
     }
     if (!id) {
@@ -258,9 +260,7 @@ void ViewData::findInCatalog(const report::SceneRecord& record, const fs::path& 
       log::warning("scene " + record.mesh + " cannot be labelled: " + scene.label_error);
       return;
     }
-    DecimatedMesh map_only;  // previewVertices reads only the map
-    map_only.vertex_map = scene.vertex_map;
-    for (discovery::CatalogSegment& c : catalog_->segments(*id, true)) {
+    for (const discovery::CatalogSegment& c : chosen) {
       ViewScene::Segment s;
       s.id = c.id;
       s.scale = c.scale;
@@ -273,7 +273,7 @@ void ViewData::findInCatalog(const report::SceneRecord& record, const fs::path& 
                                               " names a vertex outside its scene");
         }
       }
-      s.preview = report::previewVertices(map_only, c.vertices);
+      s.preview = report::previewVertices(vertex_map, c.vertices);
       scene.segments.push_back(std::move(s));
     }
     std::stable_sort(scene.segments.begin(), scene.segments.end(),

@@ -32,7 +32,6 @@ struct ViewScene {
   std::string error;  ///< why it cannot be shown (its mesh is missing or damaged); empty when fine
   std::size_t vertices = 0, faces = 0, preview_vertices = 0, preview_faces = 0;
   std::shared_ptr<const std::string> payload;  ///< report::meshViewPayload
-  std::vector<std::int32_t> vertex_map;  ///< full mesh vertex -> preview vertex (or -1)
   /// Per hypothesis of this scene (by rank), its vertices on the preview.
   std::vector<std::pair<std::size_t, std::vector<std::uint32_t>>> hypothesis_vertices;
   /// The scene in the labelling catalog; nothing: it cannot be labelled (`label_error` says why).
@@ -77,8 +76,10 @@ class ViewData {
 
  private:
   void loadScene(std::size_t index, ViewScene& scene);
+  /// The scene's candidates in the catalog; `vertex_map` takes the full mesh's vertices to the
+  /// preview's (DecimatedMesh::vertex_map).
   void findInCatalog(const report::SceneRecord& record, const std::filesystem::path& mesh_file,
-                     ViewScene& scene);
+                     const std::vector<std::int32_t>& vertex_map, ViewScene& scene);
 
   ViewSettings settings_;
   report::Hypotheses hypotheses_;

@@ -114,13 +114,13 @@ std::string viewCameraJson(const OverviewCamera& camera) {
          ", \"up\": " + triple(up) + ", \"fov_y_deg\": " + fov_text + "}";
 }
 
-std::vector<std::uint32_t> previewVertices(const DecimatedMesh& preview,
+std::vector<std::uint32_t> previewVertices(const std::vector<std::int32_t>& vertex_map,
                                            const std::vector<std::int32_t>& vertices) {
   std::vector<std::uint32_t> out;
   out.reserve(vertices.size());
   for (const std::int32_t v : vertices) {
-    if (v < 0 || static_cast<std::size_t>(v) >= preview.vertex_map.size()) continue;
-    const std::int32_t p = preview.vertex_map[static_cast<std::size_t>(v)];
+    if (v < 0 || static_cast<std::size_t>(v) >= vertex_map.size()) continue;
+    const std::int32_t p = vertex_map[static_cast<std::size_t>(v)];
     if (p >= 0) out.push_back(static_cast<std::uint32_t>(p));
   }
   std::sort(out.begin(), out.end());

@@ -84,7 +84,7 @@ TEST(MeshViewPayload, ADecimatedPreviewCarriesTheBestRankOfItsClusterAndMapsVert
   }
   const ViewMesh view = viewMesh(mesh, {hypothesis(1, left)}, "scene.ply", 5000);
   ASSERT_LE(view.preview.mesh.triangles.size(), 5000u);
-  const std::vector<std::uint32_t> shown = previewVertices(view.preview, left);
+  const std::vector<std::uint32_t> shown = previewVertices(view.preview.vertex_map, left);
   ASSERT_FALSE(shown.empty());
   for (std::size_t i = 1; i < shown.size(); ++i) EXPECT_LT(shown[i - 1], shown[i]);
   std::size_t ranked = 0;
@@ -97,7 +97,7 @@ TEST(MeshViewPayload, ADecimatedPreviewCarriesTheBestRankOfItsClusterAndMapsVert
     }
   }
   EXPECT_EQ(ranked, shown.size());
-  EXPECT_TRUE(previewVertices(view.preview, {-1, 1 << 30}).empty());
+  EXPECT_TRUE(previewVertices(view.preview.vertex_map, {-1, 1 << 30}).empty());
 }
 
 }  // namespace

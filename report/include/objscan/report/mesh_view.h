@@ -49,9 +49,10 @@ std::string meshViewPayload(const ViewMesh& view);
 /// [..], "up": [..], "fov_y_deg": f}, world frame, metres; "null" when it is not finite.
 std::string viewCameraJson(const OverviewCamera& camera);
 
-/// The vertices of `vertices` (indices into the full mesh) as vertices of the preview: mapped,
-/// unused ones dropped, each once, increasing. Out-of-range indices are dropped.
-std::vector<std::uint32_t> previewVertices(const DecimatedMesh& preview,
+/// The vertices of `vertices` (indices into the full mesh) as vertices of the preview, through
+/// its DecimatedMesh::vertex_map: mapped, unused ones dropped, each once, increasing.
+/// Out-of-range indices are dropped.
+std::vector<std::uint32_t> previewVertices(const std::vector<std::int32_t>& vertex_map,
                                            const std::vector<std::int32_t>& vertices);
 
 }  // namespace objscan::report
