@@ -325,6 +325,29 @@ int runEval(const EvalCommandOptions& options) {
 
 namespace {
 
+/// Fits `kind` to the measures and labels (normalised by `normaliser`) and writes the model file.
+discovery::ObjectnessModel fitAndSave(const TrainCommandOptions& options, discovery::ScoreKind kind,
+                                      const discovery::MeasureNormaliser& normaliser,
+                                      const std::vector<discovery::ShapeMeasures>& measures,
+                                      const std::vector<int>& labels,
+                                      const discovery::TrainConfig& config) {
+  std::vector<discovery::MeasureRow> rows;
+  for (const discovery::ShapeMeasures& m : measures) rows.push_back(normaliser.normalise(m));
+  discovery::ObjectnessModel model = discovery::ObjectnessModel::train(
+      kind, normaliser, rows, labels, discovery::kAllMeasures, config);
+  model.save(options.model);
+  return model;
+}
+
+/// The parameters the grid search chose, and the file written.
+void printChosen(const TrainCommandOptions& options, const discovery::ObjectnessModel& model) {
+  if (!model.parameters().empty()) {
+    std::printf("chosen        %s (5-fold cross-validated AP %.3f)\n", model.parameters().c_str(),
+                model.crossValidatedAp());
+  }
+  std::printf("written       %s\n", options.model.c_str());
+}
+
 /// `objscan train --catalog C` without scenes: the labels people gave in objscan view.
 int trainOnCatalogLabels(const TrainCommandOptions& options, discovery::ScoreKind kind) {
   if (!options.catalog) {
@@ -353,19 +376,11 @@ int trainOnCatalogLabels(const TrainCommandOptions& options, discovery::ScoreKin
       "%zu unsure, %zu of scenes measured with other settings\n",
       set.labels.size(), set.scenes, catalog.c_str(), objects, not_objects, set.unsure,
       set.other_settings);
-  std::vector<discovery::MeasureRow> rows;
-  for (const discovery::ShapeMeasures& m : set.measures)
-    rows.push_back(set.normaliser.normalise(m));
-  const discovery::ObjectnessModel model = discovery::ObjectnessModel::train(
-      kind, set.normaliser, rows, set.labels, discovery::kAllMeasures, config);
-  model.save(options.model);
+  const discovery::ObjectnessModel model =
+      fitAndSave(options, kind, set.normaliser, set.measures, set.labels, config);
   std::printf("trained       %s on %zu labelled segments\n", discovery::toString(kind),
               set.labels.size());
-  if (!model.parameters().empty()) {
-    std::printf("chosen        %s (5-fold cross-validated AP %.3f)\n", model.parameters().c_str(),
-                model.crossValidatedAp());
-  }
-  std::printf("written       %s\n", options.model.c_str());
+  printChosen(options, model);
   return kExitSuccess;
 }
 
@@ -378,23 +393,15 @@ int runTrain(const TrainCommandOptions& options) {
       labelledScenes(options.scenes, options.config, options.catalog, options.reading);
   const LabelledSegments segs = discovery::labelledSegments(set, options.config.max_iou);
   const std::vector<int> labels = segs.labels(options.min_iou);
-  std::vector<discovery::MeasureRow> rows;
-  for (const discovery::ShapeMeasures& m : segs.measures)
-    rows.push_back(set.normaliser.normalise(m));
   discovery::TrainConfig config;
   config.seed = options.seed;
-  const discovery::ObjectnessModel model = discovery::ObjectnessModel::train(
-      kind, set.normaliser, rows, labels, discovery::kAllMeasures, config);
-  model.save(options.model);
+  const discovery::ObjectnessModel model =
+      fitAndSave(options, kind, set.normaliser, segs.measures, labels, config);
   const auto objects = std::count(labels.begin(), labels.end(), 1);
   std::printf("trained       %s on %zu segments of %zu scenes (%td objects at IoU >= %.1f)\n",
               discovery::toString(kind), labels.size(), set.scenes.size(), objects,
               options.min_iou);
-  if (!model.parameters().empty()) {
-    std::printf("chosen        %s (5-fold cross-validated AP %.3f)\n", model.parameters().c_str(),
-                model.crossValidatedAp());
-  }
-  std::printf("written       %s\n", options.model.c_str());
+  printChosen(options, model);
   return kExitSuccess;
 }
 

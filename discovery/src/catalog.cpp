@@ -121,6 +121,14 @@ std::string nowUtc() {
 
 bool isLabel(int label) { return label >= 0 && label <= 2; }
 
+void requireLabel(int label, std::int64_t segment_id) {
+  if (!isLabel(label)) {
+    throw std::invalid_argument("a label is 1 (object), 0 (not an object) or 2 (unsure), not " +
+                                std::to_string(label) + " (segment " + std::to_string(segment_id) +
+                                ")");
+  }
+}
+
 void requireLabeller(const std::string& by) {
   if (by.empty()) throw std::invalid_argument("a label needs the name of who set it (empty)");
 }
@@ -713,7 +721,7 @@ struct Catalog::Impl {
     s.finish();
   }
 
-  /// The event with this id, or the latest of a segment.
+  /// The event with this id.
   std::optional<LabelEvent> event(Statement* query, std::int64_t id) {
     Statement& s = query->start().bind(1, id);
     std::optional<LabelEvent> found;
@@ -799,10 +807,7 @@ std::int64_t Catalog::addScene(const CatalogScene& scene,
       v.finish();
     }
     if (g.label) {
-      if (!isLabel(*g.label)) {
-        throw std::invalid_argument("a label is 1 (object), 0 (not an object) or 2 (unsure), not " +
-                                    std::to_string(*g.label));
-      }
+      requireLabel(*g.label, segment_id);
       impl_->applyLabel(segment_id, scene_id, g.label,
                         g.labelled_by.empty() ? "objscan" : g.labelled_by, now);
     }
@@ -841,18 +846,6 @@ std::vector<CatalogScene> Catalog::scenesWithHash(const std::string& content_has
   s.finish();
   return out;
 }
-
-namespace {
-
-void requireLabel(int label, std::int64_t segment_id) {
-  if (!isLabel(label)) {
-    throw std::invalid_argument("a label is 1 (object), 0 (not an object) or 2 (unsure), not " +
-                                std::to_string(label) + " (segment " + std::to_string(segment_id) +
-                                ")");
-  }
-}
-
-}  // namespace
 
 void Catalog::setLabels(std::int64_t scene_id,
                         const std::vector<std::pair<std::int64_t, int>>& segment_labels,
