@@ -71,11 +71,7 @@ void LiveRun::finish(LiveFinal final, bool keep_serving) {
   std::printf("live page     %s shows the results %s\n", server_.url().c_str(), how_long);
   std::fflush(stdout);
   StopSignals signals;  // its own handlers: fuse's are gone by now
-  const auto start = SteadyClock::now();
-  while (!StopSignals::stopRequested() &&
-         (!options_.wait_s || secondsSince(start) < *options_.wait_s)) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  }
+  StopSignals::waitForStop(options_.wait_s);
 }
 
 }  // namespace objscan::app

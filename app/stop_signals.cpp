@@ -1,5 +1,10 @@
 #include "stop_signals.h"
 
+#include <chrono>
+#include <thread>
+
+#include "objscan/core/clock.h"
+
 namespace objscan::app {
 namespace {
 
@@ -26,5 +31,12 @@ StopSignals::~StopSignals() {
 std::atomic<bool>& StopSignals::flag() { return g_stop; }
 
 void StopSignals::clear() { g_stop.store(false); }
+
+void StopSignals::waitForStop(std::optional<double> max_s) {
+  const auto start = SteadyClock::now();
+  while (!stopRequested() && (!max_s || secondsSince(start) < *max_s)) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+}
 
 }  // namespace objscan::app

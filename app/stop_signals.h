@@ -2,6 +2,7 @@
 
 #include <atomic>
 #include <csignal>
+#include <optional>
 
 namespace objscan::app {
 
@@ -22,6 +23,9 @@ class StopSignals {
   /// Forgets a stop already requested: `objscan scan` on a sensor takes the first Ctrl-C as the
   /// end of capture and goes on, so only a later one stops the run.
   static void clear();
+  /// Waits (with a StopSignals alive) until a stop is requested, or `max_s` seconds have passed
+  /// when given: how a server keeps serving until Ctrl-C or its --serve-wait.
+  static void waitForStop(std::optional<double> max_s);
 
  private:
   struct sigaction old_int_ {};

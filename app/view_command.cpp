@@ -1,16 +1,12 @@
 #include "view_command.h"
 
-#include <unistd.h>
 
-#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <memory>
 #include <stdexcept>
-#include <thread>
 
 #include "exit_codes.h"
-#include "objscan/core/clock.h"
 #include "objscan/core/error.h"
 #include "objscan/core/log.h"
 #include "options.h"
@@ -119,10 +115,7 @@ int runView(const ViewCommandOptions& options) {
   std::fflush(stdout);
   if (shown == 0) log::warning("no scene of " + options.dir.string() + " can be shown (see above)");
 
-  const auto start = SteadyClock::now();
-  while (!StopSignals::stopRequested() && (!options.wait_s || secondsSince(start) < *options.wait_s)) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  }
+  StopSignals::waitForStop(options.wait_s);
   return kExitSuccess;  // Ctrl-C is how a viewer ends
 }
 
