@@ -7,6 +7,7 @@
 #include <limits>
 #include <stdexcept>
 
+#include "objscan/core/palette.h"
 #include "mesh_view_js.h"         // generated from report/web/mesh_view.js
 #include "orbit_controls_js.h"    // generated from libjs-three's OrbitControls.js
 #include "three_js.h"             // generated from libjs-three's three.min.js
@@ -35,7 +36,20 @@ void putU16(std::string& out, std::uint16_t v) {
 
 std::string_view threeJs() { return web::kThreeJs; }
 std::string_view orbitControlsJs() { return web::kOrbitControlsJs; }
-std::string_view meshViewJs() { return web::kMeshViewJs; }
+std::string_view meshViewJs() {
+  // The rank colours from their one definition, core/palette.h, then the script.
+  static const std::string script = [] {
+    std::string s = "var OBJSCAN_RANK_PALETTE = [";
+    for (const auto& c : kRankPalette) {
+      s.append("[").append(std::to_string(c[0])).append(", ").append(std::to_string(c[1]));
+      s.append(", ").append(std::to_string(c[2])).append("], ");
+    }
+    s += "];\n";
+    s += web::kMeshViewJs;
+    return s;
+  }();
+  return script;
+}
 
 ViewMesh viewMesh(const TriangleMesh& mesh, const std::vector<HypothesisRecord>& hypotheses,
                   const std::string& scene, std::size_t max_triangles) {

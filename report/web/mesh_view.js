@@ -6,9 +6,9 @@
 (function () {
   "use strict";
 
-  // core/palette.h's kRankPalette, in the same order: a colour names a rank in every picture.
-  var PALETTE = [[230, 25, 75], [60, 180, 75], [0, 130, 200], [245, 130, 48], [145, 30, 180],
-                 [70, 240, 240], [240, 50, 230], [210, 245, 60], [0, 128, 128], [170, 110, 40]];
+  // core/palette.h's kRankPalette, which objscan writes ahead of this script (report::meshViewJs):
+  // a colour names a rank in every picture, page and report.
+  var PALETTE = OBJSCAN_RANK_PALETTE;
   var HIGHLIGHT = [255, 215, 0];
   var GREY = 190;
 

@@ -15,8 +15,9 @@
 namespace objscan::report {
 
 /// three.js r111 and its OrbitControls, from Debian's libjs-three (MIT licence), and objscan's
-/// mesh view (report/web/mesh_view.js, which defines `ObjscanMeshView`): classic scripts, to be
-/// loaded in this order. Compiled into objscan at build time.
+/// mesh view (report/web/mesh_view.js, which defines `ObjscanMeshView`, preceded by the rank
+/// colours of core/palette.h): classic scripts, to be loaded in this order. Compiled into objscan
+/// at build time.
 std::string_view threeJs();
 std::string_view orbitControlsJs();
 std::string_view meshViewJs();
