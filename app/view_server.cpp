@@ -13,6 +13,7 @@
 #include <civetweb.h>
 #include <nlohmann/json.hpp>
 
+#include "objscan/core/byte_writing.h"
 #include "objscan/core/error.h"
 #include "objscan/core/log.h"
 #include "objscan/core/palette.h"
@@ -52,14 +53,11 @@ HttpReply jsonError(int status, const std::string& message) {
   return HttpReply::json(dump(Json{{"error", message}}), status);
 }
 
+/// A vertex list as the page reads it (a Uint32Array): little-endian uint32s.
 std::string u32Bytes(const std::vector<std::uint32_t>& values) {
   std::string out;
   out.reserve(values.size() * 4);
-  for (const std::uint32_t v : values) {
-    const char b[4] = {static_cast<char>(v & 0xff), static_cast<char>((v >> 8) & 0xff),
-                       static_cast<char>((v >> 16) & 0xff), static_cast<char>(v >> 24)};
-    out.append(b, 4);
-  }
+  for (const std::uint32_t v : values) byte_writing::putLittleEndian(out, v);
   return out;
 }
 
@@ -118,16 +116,22 @@ std::optional<Json> objectBody(const HttpRequest& request, HttpReply* error) {
 }
 
 Json eventJson(const discovery::LabelEvent& e) {
-  Json j = {{"event", e.id},          {"segment", e.segment_id},
-            {"label", labelJson(e.label)}, {"previous", labelJson(e.previous)},
-            {"by", e.by},             {"at", e.at}};
+  Json j = {{"event", e.id},
+            {"segment", e.segment_id},
+            {"label", labelJson(e.label)},
+            {"previous", labelJson(e.previous)},
+            {"by", e.by},
+            {"at", e.at}};
   if (e.undoes) j["undoes"] = *e.undoes;
   return j;
 }
 
 Json countsJson(const discovery::LabelCounts& c) {
-  return {{"segments", c.segments},       {"labelled", c.labelled}, {"objects", c.objects},
-          {"not_objects", c.not_objects}, {"unsure", c.unsure}};
+  return {{"segments", c.segments},
+          {"labelled", c.labelled},
+          {"objects", c.objects},
+          {"not_objects", c.not_objects},
+          {"unsure", c.unsure}};
 }
 
 }  // namespace
@@ -176,7 +180,6 @@ ViewData::ViewData(const ViewSettings& settings) : settings_(settings) {
       log::warning(std::string("the overview camera is not used: ") + e.what());
     }
   }
-
 }
 
 void ViewData::loadScenes() {
@@ -199,8 +202,8 @@ void ViewData::loadScene(std::size_t index, ViewScene& scene) {
   try {
     mesh = report::readSceneMesh(settings_.dir, record, &mesh_file);
     if (mesh.triangles.empty()) throw InputError(mesh_file, "has no triangles to show");
-    const report::ViewMesh view =
-        report::viewMesh(mesh, hypotheses_.hypotheses, record.mesh, settings_.max_preview_triangles);
+    const report::ViewMesh view = report::viewMesh(mesh, hypotheses_.hypotheses, record.mesh,
+                                                   settings_.max_preview_triangles);
     scene.payload = std::make_shared<const std::string>(report::meshViewPayload(view));
     scene.vertices = mesh.positions.size();
     scene.faces = mesh.triangles.size();
@@ -240,14 +243,15 @@ void ViewData::findInCatalog(const report::SceneRecord& record, const fs::path& 
     // means something only in the catalog the run used), the one that holds the most of the
     // hypotheses; the noted one, then the newest, on a tie.
     const std::string hash = discovery::contentHash(mesh_file);
-    const bool same_catalog = hypotheses_.catalog && fs::path(hypotheses_.catalog->path) == catalog_path_;
+    const bool same_catalog =
+        hypotheses_.catalog && fs::path(hypotheses_.catalog->path) == catalog_path_;
     std::size_t best = 0;
     std::vector<discovery::CatalogSegment> chosen;  // the chosen scene's, with their vertices
     for (const discovery::CatalogScene& s : catalog_->scenesWithHash(hash)) {
       if (s.vertex_count != scene.vertices) continue;
       std::vector<discovery::CatalogSegment> segments = catalog_->segments(s.id, true);
-      const std::size_t n = holds(segments) * 2 +
-                            (same_catalog && record.catalog_scene == s.id ? 1 : 0);
+      const std::size_t n =
+          holds(segments) * 2 + (same_catalog && record.catalog_scene == s.id ? 1 : 0);
       if (!id || n >= best) {
         id = s.id;
         best = n;
@@ -269,8 +273,8 @@ void ViewData::findInCatalog(const report::SceneRecord& record, const fs::path& 
       if (const auto it = rank_of.find(c.vertices); it != rank_of.end()) s.rank = it->second;
       for (const std::int32_t v : c.vertices) {
         if (v < 0 || static_cast<std::size_t>(v) >= scene.vertices) {
-          throw InputError(catalog_path_, "segment " + std::to_string(c.id) +
-                                              " names a vertex outside its scene");
+          throw InputError(catalog_path_,
+                           "segment " + std::to_string(c.id) + " names a vertex outside its scene");
         }
       }
       s.preview = report::previewVertices(vertex_map, c.vertices);
@@ -294,8 +298,9 @@ void ViewData::findInCatalog(const report::SceneRecord& record, const fs::path& 
 
 ViewServer::ViewServer(ViewData& data, const ServeAddress& address)
     : data_(data),
-      server_(address, [this](const HttpRequest& request) { return route(request); },
-              HttpServerOptions{"--serve", 4096, false}) {}
+      server_(
+          address, [this](const HttpRequest& request) { return route(request); },
+          HttpServerOptions{"--serve", 4096, false}) {}
 
 HttpReply ViewServer::route(const HttpRequest& request) {
   const std::string_view path = request.path;
@@ -346,11 +351,11 @@ HttpReply ViewServer::route(const HttpRequest& request) {
                 {"scale", r.scale ? Json(*r.scale) : Json(nullptr)}};
       if (!r.file.empty()) j["file"] = r.file;
       if (r.box) {
-        j["box"] = {{"centre", vectorJson(r.box->centre)},
-                    {"extents", vectorJson(r.box->extents)},
-                    {"axes", Json::array({vectorJson(r.box->axes.col(0)),
-                                          vectorJson(r.box->axes.col(1)),
-                                          vectorJson(r.box->axes.col(2))})}};
+        j["box"] = {
+            {"centre", vectorJson(r.box->centre)},
+            {"extents", vectorJson(r.box->extents)},
+            {"axes", Json::array({vectorJson(r.box->axes.col(0)), vectorJson(r.box->axes.col(1)),
+                                  vectorJson(r.box->axes.col(2))})}};
       }
       hypotheses.push_back(j);
     }
@@ -411,13 +416,15 @@ HttpReply ViewServer::sceneRoute(const HttpRequest& request, const ViewScene& sc
   if (rest.substr(0, kSegments.size()) == kSegments) {
     const auto id = numberBefore(rest.substr(kSegments.size()), "/vertices");
     for (const ViewScene::Segment& s : scene.segments) {
-      if (id && s.id == *id) return HttpReply::bytes("application/octet-stream", u32Bytes(s.preview));
+      if (id && s.id == *id)
+        return HttpReply::bytes("application/octet-stream", u32Bytes(s.preview));
     }
     return jsonError(404, "no such segment in this scene");
   }
   if (!scene.catalog_scene) {
-    return jsonError(409, "this scene cannot be labelled: " +
-                              (scene.label_error.empty() ? data_.labellingOff() : scene.label_error));
+    return jsonError(409,
+                     "this scene cannot be labelled: " +
+                         (scene.label_error.empty() ? data_.labellingOff() : scene.label_error));
   }
   if (rest == "at") {
     char value[32] = "";
@@ -483,7 +490,8 @@ HttpReply ViewServer::label(const HttpRequest& request) {
   }
   std::optional<int> value;
   const auto given = body.find("label");
-  if (given == body.end()) return jsonError(400, "give \"label\": object, not_object, unsure or null");
+  if (given == body.end())
+    return jsonError(400, "give \"label\": object, not_object, unsure or null");
   if (!given->is_null()) {
     const std::string name = given->is_string() ? given->get<std::string>() : std::string();
     for (std::size_t k = 0; k < kLabelNames.size(); ++k) {

@@ -10,7 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "byte_writing.h"
+#include "objscan/core/byte_writing.h"
 #include "objscan/core/ply_io.h"
 
 namespace objscan {
@@ -21,7 +21,7 @@ using byte_writing::putText;
 /// Little-endian, as STL and glTF store every number.
 template <class T>
 void put(std::string& out, T value) {
-  byte_writing::putBinary(out, value, std::endian::native == std::endian::big);
+  byte_writing::putLittleEndian(out, value);
 }
 
 std::string encodeObj(const TriangleMesh& mesh) {

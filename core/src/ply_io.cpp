@@ -26,7 +26,7 @@
 #include <system_error>
 #include <type_traits>
 
-#include "byte_writing.h"
+#include "objscan/core/byte_writing.h"
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/error.h"
 #include "objscan/core/log.h"

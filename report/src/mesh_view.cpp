@@ -3,34 +3,19 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <limits>
 #include <stdexcept>
 
+#include "mesh_view_js.h"  // generated from report/web/mesh_view.js
+#include "objscan/core/byte_writing.h"
 #include "objscan/core/palette.h"
-#include "mesh_view_js.h"         // generated from report/web/mesh_view.js
-#include "orbit_controls_js.h"    // generated from libjs-three's OrbitControls.js
-#include "three_js.h"             // generated from libjs-three's three.min.js
+#include "orbit_controls_js.h"  // generated from libjs-three's OrbitControls.js
+#include "three_js.h"           // generated from libjs-three's three.min.js
 
 namespace objscan::report {
 namespace {
 
-void putU32(std::string& out, std::uint32_t v) {
-  const char bytes[4] = {static_cast<char>(v & 0xff), static_cast<char>((v >> 8) & 0xff),
-                         static_cast<char>((v >> 16) & 0xff), static_cast<char>(v >> 24)};
-  out.append(bytes, 4);
-}
-
-void putF32(std::string& out, float f) {
-  std::uint32_t v = 0;
-  std::memcpy(&v, &f, 4);
-  putU32(out, v);
-}
-
-void putU16(std::string& out, std::uint16_t v) {
-  out.push_back(static_cast<char>(v & 0xff));
-  out.push_back(static_cast<char>(v >> 8));
-}
+using byte_writing::putLittleEndian;
 
 }  // namespace
 
@@ -83,12 +68,12 @@ std::string meshViewPayload(const ViewMesh& view) {
   std::string out;
   out.reserve(20 + n * (12 + (colours ? 4 : 0) + 2) + 4 + mesh.triangles.size() * 12);
   out.append("OSVM", 4);
-  putU32(out, 1);
-  putU32(out, static_cast<std::uint32_t>(n));
-  putU32(out, static_cast<std::uint32_t>(mesh.triangles.size()));
-  putU32(out, colours ? 1u : 0u);
+  putLittleEndian<std::uint32_t>(out, 1);
+  putLittleEndian<std::uint32_t>(out, static_cast<std::uint32_t>(n));
+  putLittleEndian<std::uint32_t>(out, static_cast<std::uint32_t>(mesh.triangles.size()));
+  putLittleEndian<std::uint32_t>(out, colours ? 1u : 0u);
   for (const Eigen::Vector3f& p : mesh.positions) {
-    for (int d = 0; d < 3; ++d) putF32(out, p[d]);
+    for (int d = 0; d < 3; ++d) putLittleEndian<float>(out, p[d]);
   }
   if (colours) {
     for (const Rgb8& c : mesh.colors) {
@@ -98,10 +83,12 @@ std::string meshViewPayload(const ViewMesh& view) {
       out.push_back(static_cast<char>(255));
     }
   }
-  for (std::size_t i = 0; i < n; ++i) putU16(out, i < view.ranks.size() ? view.ranks[i] : 0);
-  if (n % 2 == 1) putU16(out, 0);
+  for (std::size_t i = 0; i < n; ++i)
+    putLittleEndian<std::uint16_t>(out, i < view.ranks.size() ? view.ranks[i] : 0);
+  if (n % 2 == 1) putLittleEndian<std::uint16_t>(out, 0);
   for (const Eigen::Vector3i& t : mesh.triangles) {
-    for (int k = 0; k < 3; ++k) putU32(out, static_cast<std::uint32_t>(t[k]));
+    for (int k = 0; k < 3; ++k)
+      putLittleEndian<std::uint32_t>(out, static_cast<std::uint32_t>(t[k]));
   }
   return out;
 }
@@ -111,8 +98,8 @@ std::string viewCameraJson(const OverviewCamera& camera) {
   // The camera looks along its +z with +y down (objscan's camera frame).
   const Eigen::Vector3f forward = camera.T_W_C.linear() * Eigen::Vector3f::UnitZ();
   const Eigen::Vector3f up = camera.T_W_C.linear() * -Eigen::Vector3f::UnitY();
-  const double fov = 2.0 * std::atan(0.5 * camera.intrinsics.height_px / camera.intrinsics.fy_px) *
-                     180.0 / M_PI;
+  const double fov =
+      2.0 * std::atan(0.5 * camera.intrinsics.height_px / camera.intrinsics.fy_px) * 180.0 / M_PI;
   // A damaged file's infinities are no JSON: no camera then (the view finds its own).
   if (!position.allFinite() || !forward.allFinite() || !up.allFinite() || forward.isZero()) {
     return "null";
