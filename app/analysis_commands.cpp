@@ -97,8 +97,8 @@ Command addTrainCommand(CLI::App& app) {
       "train", "Fit a classifier that scores hypotheses (for objscan discover --model)");
   train->footer(
       "Examples:\n"
-      "  objscan train scenes/learn*.pcd --model out/model.yaml   (ground truth of the scenes)\n"
-      "  objscan train --catalog C --model out/model.yaml   (the labels given in objscan view)");
+      "  objscan train scenes/learn*.pcd --model out/model.json   (ground truth of the scenes)\n"
+      "  objscan train --catalog C --model out/model.json   (the labels given in objscan view)");
   addLabelledScenes(train, train_options.scenes, train_options.catalog);
   // Without scenes, train uses the catalog's labels (people's, from objscan view).
   train->get_option("scenes")->required(false)->description(
@@ -109,7 +109,7 @@ Command addTrainCommand(CLI::App& app) {
       ->description(
           "Catalog to reuse and extend (default: none); without scenes, the catalog whose labels "
           "(given in objscan view) to train on");
-  train->add_option("--model", train_options.model, "Model file to write (YAML)")->required();
+  train->add_option("--model", train_options.model, "Model file to write (JSON)")->required();
   train
       ->add_option("--kind", train_options.kind,
                    "naive_bayes, linear_svm, rbf_svm or nearest_neighbour")

@@ -1,4 +1,4 @@
-// Model files of objscan train (OpenCV FileStorage YAML): discovery::ObjectnessModel::load, and
+// Model files of objscan train (JSON): discovery::ObjectnessModel::load, and
 // the model scoring a segment (what discover --model does next).
 #include "fuzz_input.h"
 #include "objscan/discovery/scoring.h"
@@ -6,7 +6,7 @@
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   return objscan::fuzz::expectingRefusals([&] {
     const objscan::discovery::ObjectnessModel model =
-        objscan::discovery::ObjectnessModel::load(objscan::fuzz::writeInput(data, size, ".yml"));
+        objscan::discovery::ObjectnessModel::load(objscan::fuzz::writeInput(data, size, ".json"));
     objscan::discovery::ShapeMeasures m;
     m.compactness = 0.5;
     m.symmetry = 0.1;

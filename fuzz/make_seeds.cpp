@@ -5,7 +5,9 @@
 #include <exception>
 #include <filesystem>
 #include <fstream>
+#include <random>
 #include <string>
+#include <vector>
 
 #include <liblzf/lzf.h>
 
@@ -123,6 +125,17 @@ void make(const fs::path& out) {
          "# color images\n1305031102.175304 rgb/1.png\n1305031102.21 rgb/2.png\n=====\n"
          "1305031102.175304 0 0 0 0 0 0 1\n";
 
+  const fs::path seven = out / "fuzz_seven_scenes";  // intrinsics, two poses, the valid PNG
+  fs::create_directories(seven);
+  const std::string pose0 = "1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n";
+  const std::string pose1 =
+      "9.9939e-01 -3.4899e-02 0.0000e+00 1.2e-02\n3.4899e-02 9.9939e-01 0.0000e+00 -3.0e-03\n"
+      "0.0000e+00 0.0000e+00 1.0000e+00 2.5e-02\n0.0000e+00 0.0000e+00 0.0000e+00 1.0000e+00\n";
+  std::ofstream(seven / "seed0") << "585 0 320\n0 585 240\n0 0 1\n=====\n" << pose0 << "=====\n"
+                                  << pose1 << "=====\n";
+  std::ofstream(seven / "seed1") << "\n=====\n" << pose0 << "=====\n" << pose1;
+  std::ofstream(seven / "seed2") << "\t583.0\t0\t320.0\n 0 583 240 \n0 0 1";
+
   const fs::path intrinsics = out / "fuzz_intrinsics_json";
   fs::create_directories(intrinsics);
   writeIntrinsicsJson(intrinsics / "seed0.json", Intrinsics::xtionDefault());
@@ -184,7 +197,21 @@ void make(const fs::path& out) {
   discovery::MeasureNormaliser normaliser;
   normaliser.mean = {0.5, 0.2, 0.8, 0.7, 0.003, 1.0};
   normaliser.sd = {0.1, 0.1, 0.1, 0.1, 0.001, 0.5};
-  discovery::ObjectnessModel::average(normaliser).save(model / "average.yml");
+  discovery::ObjectnessModel::average(normaliser).save(model / "average.json");
+  {  // a trained model of every kind, on two overlapping clouds of measures
+    std::mt19937 random(5);
+    std::normal_distribution<double> noise(0.0, 1.0);
+    std::vector<discovery::MeasureRow> rows(60);
+    std::vector<int> labels(rows.size());
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      labels[i] = static_cast<int>(i % 2);
+      for (double& v : rows[i]) v = noise(random) + labels[i];
+    }
+    for (const discovery::ScoreKind kind : discovery::kAllScoreKinds) {
+      discovery::ObjectnessModel::train(kind, normaliser, rows, labels)
+          .save(model / (std::string(discovery::toString(kind)) + ".json"));
+    }
+  }
 
   const fs::path catalog_dir = out / "fuzz_catalog";
   fs::create_directories(catalog_dir);

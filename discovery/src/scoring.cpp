@@ -13,6 +13,8 @@
 #include <opencv2/core.hpp>
 #include <opencv2/ml.hpp>
 
+#include <nlohmann/json.hpp>
+
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/error.h"
 #include "stratify.h"
@@ -21,7 +23,8 @@ namespace objscan::discovery {
 
 namespace {
 
-constexpr int kModelFileVersion = 1;
+/// Version 2: JSON (version 1 was OpenCV FileStorage YAML, no longer read).
+constexpr int kModelFileVersion = 2;
 
 /// The grids searched (features are z-normalised, so the RBF width is in units of a standard
 /// deviation; 1/6 is libsvm's 1/features default).
@@ -98,6 +101,45 @@ struct NaiveBayes {
   }
 };
 
+/// A two-class SVM's decision function, f(x) = sum_i alpha_i K(v_i, x) - rho, with K the dot
+/// product (gamma 0) or exp(-gamma |v - x|^2). objscan trains with OpenCV's SVM and keeps these
+/// numbers, read from it, in the model file: OpenCV restores an SVM only from its FileStorage
+/// YAML, whose reader can hang on a damaged file (docs/fuzzing.md).
+struct SvmDecision {
+  cv::Mat vectors;  ///< support vectors, one CV_32F row each
+  std::vector<double> alpha;
+  double rho = 0.0;
+  double gamma = 0.0;
+
+  static SvmDecision of(const cv::ml::SVM& svm) {
+    SvmDecision d;
+    cv::Mat alpha, index;
+    d.rho = svm.getDecisionFunction(0, alpha, index);
+    const cv::Mat all = svm.getSupportVectors();
+    d.vectors.create(index.rows * index.cols, all.cols, CV_32F);
+    for (int i = 0; i < d.vectors.rows; ++i) {
+      all.row(index.at<int>(i)).copyTo(d.vectors.row(i));
+      d.alpha.push_back(alpha.at<double>(i));
+    }
+    d.gamma = svm.getKernelType() == cv::ml::SVM::RBF ? svm.getGamma() : 0.0;
+    return d;
+  }
+
+  double value(const float* x) const {
+    double sum = -rho;
+    for (int i = 0; i < vectors.rows; ++i) {
+      const float* v = vectors.ptr<float>(i);
+      double k = 0.0;
+      for (int j = 0; j < vectors.cols; ++j) {
+        k += gamma > 0.0 ? (v[j] - x[j]) * static_cast<double>(v[j] - x[j])
+                         : static_cast<double>(v[j]) * x[j];
+      }
+      sum += alpha[static_cast<std::size_t>(i)] * (gamma > 0.0 ? std::exp(-gamma * k) : k);
+    }
+    return sum;
+  }
+};
+
 }  // namespace
 
 struct ObjectnessModel::Impl {
@@ -107,11 +149,15 @@ struct ObjectnessModel::Impl {
   Params params;
   double cv_ap = std::numeric_limits<double>::quiet_NaN();
   double sign = 1.0;  ///< orients the SVM's decision value so that objects score higher
-  cv::Ptr<cv::ml::SVM> svm;
+  SvmDecision svm;
+  cv::Mat knn_samples;          ///< the training rows (CV_32F), what a model file keeps
+  std::vector<int> knn_labels;  ///< 1 object, 0 not, one per row
   cv::Ptr<cv::ml::KNearest> knn;
   NaiveBayes bayes;
 
   void fit(const cv::Mat& x, const std::vector<int>& y);
+  /// Builds OpenCV's neighbour search over knn_samples (all it does is keep them).
+  void trainNeighbours();
   std::vector<double> scores(const cv::Mat& x) const;
 };
 
@@ -125,14 +171,27 @@ void ObjectnessModel::Impl::fit(const cv::Mat& x, const std::vector<int>& y) {
       break;
     case ScoreKind::kLinearSvm:
     case ScoreKind::kRbfSvm: {
-      svm = cv::ml::SVM::create();
-      svm->setType(cv::ml::SVM::C_SVC);
-      svm->setKernel(kind == ScoreKind::kLinearSvm ? cv::ml::SVM::LINEAR : cv::ml::SVM::RBF);
-      svm->setC(params.c);
-      if (kind == ScoreKind::kRbfSvm) svm->setGamma(params.gamma);
-      svm->setTermCriteria(
+      const cv::Ptr<cv::ml::SVM> trained = cv::ml::SVM::create();
+      trained->setType(cv::ml::SVM::C_SVC);
+      trained->setKernel(kind == ScoreKind::kLinearSvm ? cv::ml::SVM::LINEAR : cv::ml::SVM::RBF);
+      trained->setC(params.c);
+      if (kind == ScoreKind::kRbfSvm) trained->setGamma(params.gamma);
+      trained->setTermCriteria(
           cv::TermCriteria(cv::TermCriteria::MAX_ITER + cv::TermCriteria::EPS, 20000, 1e-5));
-      svm->train(cv::ml::TrainData::create(x, cv::ml::ROW_SAMPLE, responses.reshape(1, x.rows)));
+      trained->train(
+          cv::ml::TrainData::create(x, cv::ml::ROW_SAMPLE, responses.reshape(1, x.rows)));
+      svm = SvmDecision::of(*trained);
+      // The decision function objscan evaluates must be OpenCV's, up to its float arithmetic.
+      cv::Mat opencv_raw;
+      trained->predict(x, opencv_raw, cv::ml::StatModel::RAW_OUTPUT);
+      for (int r = 0; r < x.rows; ++r) {
+        const double ours = svm.value(x.ptr<float>(r)), theirs = opencv_raw.at<float>(r);
+        if (std::abs(ours - theirs) > 1e-3 * (1.0 + std::abs(theirs))) {
+          throw std::logic_error("the SVM's decision function read from OpenCV gives " +
+                                 std::to_string(ours) + " where OpenCV gives " +
+                                 std::to_string(theirs));
+        }
+      }
       // OpenCV's raw output is a signed distance whose sign depends on the internal class order:
       // orient it so that the training objects lie on the positive side.
       sign = 1.0;
@@ -144,16 +203,22 @@ void ObjectnessModel::Impl::fit(const cv::Mat& x, const std::vector<int>& y) {
       break;
     }
     case ScoreKind::kNearestNeighbour: {
-      knn = cv::ml::KNearest::create();
-      knn->setIsClassifier(true);
       params.k = std::min(params.k, x.rows);  // findNearest needs k <= the sample count
-      knn->setDefaultK(params.k);
-      cv::Mat labels;
-      responses.reshape(1, x.rows).convertTo(labels, CV_32F);
-      knn->train(cv::ml::TrainData::create(x, cv::ml::ROW_SAMPLE, labels));
+      knn_samples = x.clone();
+      knn_labels = y;
+      trainNeighbours();
       break;
     }
   }
+}
+
+void ObjectnessModel::Impl::trainNeighbours() {
+  knn = cv::ml::KNearest::create();
+  knn->setIsClassifier(true);
+  knn->setDefaultK(params.k);
+  cv::Mat labels;
+  cv::Mat(knn_labels, true).reshape(1, knn_samples.rows).convertTo(labels, CV_32F);
+  knn->train(cv::ml::TrainData::create(knn_samples, cv::ml::ROW_SAMPLE, labels));
 }
 
 std::vector<double> ObjectnessModel::Impl::scores(const cv::Mat& x) const {
@@ -171,9 +236,7 @@ std::vector<double> ObjectnessModel::Impl::scores(const cv::Mat& x) const {
       break;
     case ScoreKind::kLinearSvm:
     case ScoreKind::kRbfSvm: {
-      cv::Mat raw;
-      svm->predict(x, raw, cv::ml::StatModel::RAW_OUTPUT);
-      for (int r = 0; r < x.rows; ++r) out[r] = sign * raw.at<float>(r);
+      for (int r = 0; r < x.rows; ++r) out[r] = sign * svm.value(x.ptr<float>(r));
       break;
     }
     case ScoreKind::kNearestNeighbour: {
@@ -415,77 +478,125 @@ std::string ObjectnessModel::parameters() const {
   return s.str();
 }
 
+namespace {
+
+double finiteNumber(const nlohmann::json& j, const char* what) {
+  if (!j.is_number()) throw std::invalid_argument(std::string(what) + " must be a number");
+  const double v = j.get<double>();
+  if (!std::isfinite(v)) throw std::invalid_argument(std::string(what) + " is not finite");
+  return v;
+}
+
+std::vector<double> finiteNumbers(const nlohmann::json& j, std::size_t n, const char* what) {
+  if (!j.is_array() || !std::all_of(j.begin(), j.end(), [](const auto& x) { return x.is_number(); })) {
+    throw std::invalid_argument(std::string(what) + " must be a list of numbers");
+  }
+  auto v = j.get<std::vector<double>>();
+  if (v.size() != n) {
+    throw std::invalid_argument(std::string(what) + " must hold " + std::to_string(n) +
+                                " numbers, one per measure");
+  }
+  for (const double x : v) {
+    if (!std::isfinite(x)) throw std::invalid_argument(std::string(what) + " is not finite");
+  }
+  return v;
+}
+
+nlohmann::json matrixToJson(const cv::Mat& m) {
+  nlohmann::json rows = nlohmann::json::array();
+  for (int r = 0; r < m.rows; ++r) {
+    std::vector<double> row(static_cast<std::size_t>(m.cols));
+    for (int c = 0; c < m.cols; ++c) row[static_cast<std::size_t>(c)] = m.at<float>(r, c);
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+/// Reads an array of rows of `cols` finite numbers (throws std::invalid_argument naming `what`).
+cv::Mat matrixFromJson(const nlohmann::json& j, int cols, const char* what) {
+  if (!j.is_array() || j.empty()) {
+    throw std::invalid_argument(std::string(what) + " must be a non-empty list of rows");
+  }
+  cv::Mat m(static_cast<int>(j.size()), cols, CV_32F);
+  for (std::size_t r = 0; r < j.size(); ++r) {
+    const auto row = finiteNumbers(j[r], static_cast<std::size_t>(cols), what);
+    for (int c = 0; c < cols; ++c) {
+      const double v = row[static_cast<std::size_t>(c)];
+      if (std::abs(v) > std::numeric_limits<float>::max()) {
+        throw std::invalid_argument(std::string(what) + " holds a number past float's range");
+      }
+      m.at<float>(static_cast<int>(r), c) = static_cast<float>(v);
+    }
+  }
+  return m;
+}
+
+}  // namespace
+
 void ObjectnessModel::save(const std::filesystem::path& path) const {
-  cv::FileStorage fs(".yml", cv::FileStorage::WRITE | cv::FileStorage::MEMORY);
   const Impl& m = *impl_;
-  fs << "objscan_model" << kModelFileVersion;
-  fs << "kind" << toString(m.kind);
-  fs << "measures"
-     << "[";
+  nlohmann::json j;
+  j["objscan_model"] = kModelFileVersion;
+  j["kind"] = toString(m.kind);
+  nlohmann::json measures = nlohmann::json::array();
   for (std::size_t k = 0; k < kMeasureCount; ++k) {
-    if (m.mask[k]) fs << kMeasureNames[k];
+    if (m.mask[k]) measures.push_back(kMeasureNames[k]);
   }
-  fs << "]";
-  fs << "mean" << std::vector<double>(m.normaliser.mean.begin(), m.normaliser.mean.end());
-  fs << "sd" << std::vector<double>(m.normaliser.sd.begin(), m.normaliser.sd.end());
-  fs << "C" << m.params.c << "gamma" << m.params.gamma << "k" << m.params.k;
-  fs << "cross_validated_ap" << (std::isfinite(m.cv_ap) ? m.cv_ap : -1.0);
-  fs << "sign" << m.sign;
+  j["measures"] = measures;
+  j["mean"] = std::vector<double>(m.normaliser.mean.begin(), m.normaliser.mean.end());
+  j["sd"] = std::vector<double>(m.normaliser.sd.begin(), m.normaliser.sd.end());
+  j["C"] = m.params.c;
+  j["gamma"] = m.params.gamma;
+  j["k"] = m.params.k;
+  j["cross_validated_ap"] = std::isfinite(m.cv_ap) ? m.cv_ap : -1.0;
+  j["sign"] = m.sign;
   if (m.kind == ScoreKind::kNaiveBayes) {
-    fs << "bayes"
-       << "{";
-    fs << "mean0" << m.bayes.mean[0] << "mean1" << m.bayes.mean[1];
-    fs << "var0" << m.bayes.var[0] << "var1" << m.bayes.var[1];
-    fs << "log_prior0" << m.bayes.log_prior[0] << "log_prior1" << m.bayes.log_prior[1];
-    fs << "}";
-  } else if (m.svm) {
-    fs << "opencv_svm"
-       << "{";
-    m.svm->write(fs);
-    fs << "}";
-  } else if (m.knn) {
-    fs << "opencv_knearest"
-       << "{";
-    m.knn->write(fs);
-    fs << "}";
+    j["bayes"] = {{"mean0", m.bayes.mean[0]},           {"mean1", m.bayes.mean[1]},
+                  {"var0", m.bayes.var[0]},             {"var1", m.bayes.var[1]},
+                  {"log_prior0", m.bayes.log_prior[0]}, {"log_prior1", m.bayes.log_prior[1]}};
+  } else if (m.kind == ScoreKind::kLinearSvm || m.kind == ScoreKind::kRbfSvm) {
+    j["svm"] = {{"gamma", m.svm.gamma},
+                {"rho", m.svm.rho},
+                {"alpha", m.svm.alpha},
+                {"support_vectors", matrixToJson(m.svm.vectors)}};
+  } else if (m.kind == ScoreKind::kNearestNeighbour) {
+    j["knn"] = {{"samples", matrixToJson(m.knn_samples)}, {"labels", m.knn_labels}};
   }
-  writeFileAtomically(path, fs.releaseAndGetString());
+  writeFileAtomically(path, j.dump(1) + "\n");
 }
 
 ObjectnessModel ObjectnessModel::load(const std::filesystem::path& path) {
   const std::string text = readWholeFile(path);
   const auto bad = [&](const std::string& problem) { return InputError(path, problem); };
   if (text.empty()) throw bad("empty file, not an objscan model");
-  // OpenCV 4.6's FileStorage reader never returns on some malformed YAML (found by fuzz_model:
-  // "%YAML:1.\n----s\n-  -\n " loops forever). A model file is what save() writes: YAML 1.0
-  // with its document marker alone on the second line, text without control bytes. Anything else
-  // is refused before OpenCV sees it.
-  constexpr std::string_view kStart = "%YAML:1.0\n---\n";
-  if (text.compare(0, kStart.size(), kStart) != 0) {
-    throw bad("not an objscan model file (it starts \"%YAML:1.0\" and \"---\", as `objscan train` "
-              "writes it)");
+  // Until 2026-11 models were OpenCV FileStorage YAML. OpenCV 4.6's YAML reader never returns on
+  // some damaged files (fuzz_model found several), so objscan no longer reads YAML at all.
+  if (text.rfind("%YAML", 0) == 0) {
+    throw bad("an objscan model in the old YAML form, which objscan no longer reads (OpenCV's "
+              "YAML reader can hang on a damaged file): train it again with `objscan train`");
   }
-  for (const char c : text) {
-    const auto u = static_cast<unsigned char>(c);
-    if ((u < 0x20 && c != '\n' && c != '\r' && c != '\t') || u == 0x7f) {
-      throw bad("not an objscan model file (it holds control bytes: not text)");
-    }
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(text);
+  } catch (const nlohmann::json::exception&) {
+    throw bad("not an objscan model file (not JSON)");
+  }
+  if (!j.is_object() || !j.contains("objscan_model")) {
+    throw bad("not an objscan model file (written by `objscan train`)");
   }
   auto impl = std::make_shared<Impl>();
   try {
-    cv::FileStorage fs(text, cv::FileStorage::READ | cv::FileStorage::MEMORY);
-    if (!fs.isOpened() || fs["objscan_model"].empty()) {
-      throw bad("not an objscan model file (written by `objscan train`)");
-    }
-    const int version = static_cast<int>(fs["objscan_model"]);
+    const int version = j.at("objscan_model").get<int>();
     if (version > kModelFileVersion) {
       throw bad("model file version " + std::to_string(version) +
                 " is newer than this objscan's (" + std::to_string(kModelFileVersion) + ")");
     }
-    impl->kind = scoreKindFromString(static_cast<std::string>(fs["kind"]));
+    if (version < kModelFileVersion) throw bad("model file version " + std::to_string(version) +
+                                               " is not one this objscan reads");
+    impl->kind = scoreKindFromString(j.at("kind").get<std::string>());
     impl->mask = {};
-    for (const auto& node : fs["measures"]) {
-      const std::string name = static_cast<std::string>(node);
+    for (const auto& node : j.at("measures")) {
+      const auto name = node.get<std::string>();
       const auto it = std::find(kMeasureNames.begin(), kMeasureNames.end(), name);
       if (it == kMeasureNames.end()) throw bad("unknown measure '" + name + "'");
       impl->mask[static_cast<std::size_t>(it - kMeasureNames.begin())] = true;
@@ -493,60 +604,73 @@ ObjectnessModel ObjectnessModel::load(const std::filesystem::path& path) {
     if (std::find(impl->mask.begin(), impl->mask.end(), true) == impl->mask.end()) {
       throw bad("the model uses no measure");
     }
-    std::vector<double> mean, sd;
-    fs["mean"] >> mean;
-    fs["sd"] >> sd;
-    if (mean.size() != kMeasureCount || sd.size() != kMeasureCount) {
-      throw bad("the normaliser needs " + std::to_string(kMeasureCount) + " means and deviations");
-    }
+    const auto mean = finiteNumbers(j.at("mean"), kMeasureCount, "the normaliser's mean");
+    const auto sd = finiteNumbers(j.at("sd"), kMeasureCount, "the normaliser's deviation");
     std::copy(mean.begin(), mean.end(), impl->normaliser.mean.begin());
     std::copy(sd.begin(), sd.end(), impl->normaliser.sd.begin());
-    fs["C"] >> impl->params.c;
-    fs["gamma"] >> impl->params.gamma;
-    fs["k"] >> impl->params.k;
-    fs["sign"] >> impl->sign;
-    double cv_ap = -1.0;
-    fs["cross_validated_ap"] >> cv_ap;
-    if (cv_ap >= 0.0) impl->cv_ap = cv_ap;
+    impl->params.c = finiteNumber(j.at("C"), "C");
+    impl->params.gamma = finiteNumber(j.at("gamma"), "gamma");
+    impl->params.k = j.at("k").get<int>();
+    impl->sign = finiteNumber(j.at("sign"), "sign") < 0 ? -1.0 : 1.0;
+    const double cv_ap = j.value("cross_validated_ap", -1.0);
+    if (cv_ap >= 0.0 && cv_ap <= 1.0) impl->cv_ap = cv_ap;
     const std::size_t used =
         static_cast<std::size_t>(std::count(impl->mask.begin(), impl->mask.end(), true));
     switch (impl->kind) {
       case ScoreKind::kAverage:
         break;
       case ScoreKind::kNaiveBayes: {
-        const cv::FileNode b = fs["bayes"];
-        if (b.empty()) throw bad("a naive_bayes model without its parameters");
-        b["mean0"] >> impl->bayes.mean[0];
-        b["mean1"] >> impl->bayes.mean[1];
-        b["var0"] >> impl->bayes.var[0];
-        b["var1"] >> impl->bayes.var[1];
-        b["log_prior0"] >> impl->bayes.log_prior[0];
-        b["log_prior1"] >> impl->bayes.log_prior[1];
+        const auto& b = j.at("bayes");
+        NaiveBayes& nb = impl->bayes;
+        nb.mean[0] = finiteNumbers(b.at("mean0"), used, "naive_bayes mean0");
+        nb.mean[1] = finiteNumbers(b.at("mean1"), used, "naive_bayes mean1");
+        nb.var[0] = finiteNumbers(b.at("var0"), used, "naive_bayes var0");
+        nb.var[1] = finiteNumbers(b.at("var1"), used, "naive_bayes var1");
         for (int c = 0; c < 2; ++c) {
-          if (impl->bayes.mean[c].size() != used || impl->bayes.var[c].size() != used) {
-            throw bad("naive_bayes parameters do not match its measures");
+          for (const double v : nb.var[c]) {
+            if (!(v > 0.0)) throw bad("naive_bayes variances must be positive");
           }
         }
+        nb.log_prior[0] = finiteNumber(b.at("log_prior0"), "naive_bayes log_prior0");
+        nb.log_prior[1] = finiteNumber(b.at("log_prior1"), "naive_bayes log_prior1");
         break;
       }
       case ScoreKind::kLinearSvm:
-      case ScoreKind::kRbfSvm:
-        if (fs["opencv_svm"].empty()) throw bad("an SVM model without its support vectors");
-        impl->svm = cv::ml::SVM::create();
-        impl->svm->read(fs["opencv_svm"]);
-        if (!impl->svm->isTrained() || impl->svm->getVarCount() != static_cast<int>(used)) {
-          throw bad("the SVM does not match its measures");
-        }
+      case ScoreKind::kRbfSvm: {
+        if (!j.contains("svm")) throw bad("an SVM model without its support vectors");
+        const auto& s = j.at("svm");
+        SvmDecision& d = impl->svm;
+        d.vectors = matrixFromJson(s.at("support_vectors"), static_cast<int>(used),
+                                   "the SVM's support_vectors");
+        d.alpha = finiteNumbers(s.at("alpha"), static_cast<std::size_t>(d.vectors.rows),
+                                "the SVM's alpha (one per support vector)");
+        d.rho = finiteNumber(s.at("rho"), "the SVM's rho");
+        d.gamma = impl->kind == ScoreKind::kRbfSvm ? finiteNumber(s.at("gamma"), "gamma") : 0.0;
+        if (d.gamma < 0.0) throw bad("the SVM's gamma is negative");
         break;
-      case ScoreKind::kNearestNeighbour:
-        if (fs["opencv_knearest"].empty()) throw bad("a nearest_neighbour model without samples");
-        impl->knn = cv::ml::KNearest::create();
-        impl->knn->read(fs["opencv_knearest"]);
-        if (!impl->knn->isTrained() || impl->knn->getVarCount() != static_cast<int>(used)) {
-          throw bad("the nearest-neighbour samples do not match its measures");
+      }
+      case ScoreKind::kNearestNeighbour: {
+        if (!j.contains("knn")) throw bad("a nearest_neighbour model without samples");
+        const auto& n = j.at("knn");
+        impl->knn_samples =
+            matrixFromJson(n.at("samples"), static_cast<int>(used), "the nearest_neighbour samples");
+        impl->knn_labels = n.at("labels").get<std::vector<int>>();
+        if (impl->knn_labels.size() != static_cast<std::size_t>(impl->knn_samples.rows)) {
+          throw bad("the nearest_neighbour labels must be one per sample");
         }
+        for (const int label : impl->knn_labels) {
+          if (label != 0 && label != 1) throw bad("nearest_neighbour labels are 0 or 1");
+        }
+        if (impl->params.k < 1 || impl->params.k > impl->knn_samples.rows) {
+          throw bad("k must be between 1 and the number of samples");
+        }
+        impl->trainNeighbours();
         break;
+      }
     }
+  } catch (const nlohmann::json::exception& e) {
+    // A key missing or of the wrong type: name it (e.what() ends with the key's own words).
+    throw bad(std::string("not a readable model file (") + e.what() + ")");
   } catch (const cv::Exception& e) {
     throw bad(std::string("not a readable model file (") + e.err + ")");
   } catch (const std::invalid_argument& e) {

@@ -85,10 +85,11 @@ class ObjectnessModel {
   /// The grid search's best mean cross-validated AP; NaN for the average.
   double crossValidatedAp() const;
 
-  /// Writes an OpenCV FileStorage YAML file (atomically). Throws OutputError.
+  /// Writes a JSON file (atomically; docs/file_formats.md). Throws OutputError.
   void save(const std::filesystem::path& path) const;
-  /// Throws InputError naming the file when it is missing, not YAML/XML, not an objscan model, or
-  /// from a newer objscan.
+  /// Throws InputError naming the file when it is missing, not JSON, not an objscan model (or one
+  /// in the YAML form objscan wrote before model file version 2), from a newer objscan, or holds
+  /// parameters that do not fit its kind and measures.
   static ObjectnessModel load(const std::filesystem::path& path);
 
   struct Impl;
