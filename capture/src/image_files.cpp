@@ -24,7 +24,41 @@ bool isFile(const fs::path& path) {
   return status.type() == fs::file_type::regular;
 }
 
-cv::Mat readImage(const fs::path& path, int flags) {
+std::optional<cv::Size> declaredImageSize(std::string_view bytes) {
+  const auto u16 = [&](std::size_t at) {
+    return static_cast<int>((static_cast<unsigned char>(bytes[at]) << 8) |
+                            static_cast<unsigned char>(bytes[at + 1]));
+  };
+  if (bytes.starts_with(kPngMagic)) {
+    // IHDR comes first: length (4), "IHDR" (4), width (4), height (4), big-endian.
+    if (bytes.size() < 24 || bytes.substr(12, 4) != "IHDR") return std::nullopt;
+    if (u16(16) != 0 || u16(20) != 0) return cv::Size(1 << 16, 1 << 16);  // past any camera
+    return cv::Size(u16(18), u16(22));
+  }
+  if (!bytes.starts_with("\xff\xd8")) return std::nullopt;
+  // JPEG: segments FF <marker> <big-endian length, itself included> until a start of frame
+  // (SOF0-15 but DHT C4, JPG C8, DAC CC): precision (1), height (2), width (2).
+  std::size_t at = 2;
+  while (at + 4 <= bytes.size()) {
+    if (static_cast<unsigned char>(bytes[at]) != 0xff) return std::nullopt;
+    const auto marker = static_cast<unsigned char>(bytes[at + 1]);
+    if (marker == 0xff) {  // fill byte
+      ++at;
+      continue;
+    }
+    const int length = u16(at + 2);
+    if (marker >= 0xc0 && marker <= 0xcf && marker != 0xc4 && marker != 0xc8 && marker != 0xcc) {
+      if (at + 9 > bytes.size()) return std::nullopt;
+      return cv::Size(u16(at + 7), u16(at + 5));
+    }
+    if (length < 2) return std::nullopt;
+    at += 2 + static_cast<std::size_t>(length);
+  }
+  return std::nullopt;
+}
+
+cv::Mat readImage(const fs::path& path, int flags,
+                  const std::function<void(cv::Size)>& check_size) {
   const std::string bytes = readWholeFile(path);
   if (bytes.empty()) throw InputError(path, "the image file is empty");
   static constexpr std::string_view kPngEnd("IEND\xae\x42\x60\x82", 8);
@@ -35,28 +69,23 @@ cv::Mat readImage(const fs::path& path, int flags) {
   if (view.starts_with("\xff\xd8") && !view.ends_with("\xff\xd9")) {
     throw InputError(path, "the JPEG file is truncated (it has no end-of-image marker)");
   }
+  if (const std::optional<cv::Size> declared = declaredImageSize(view)) check_size(*declared);
   cv::Mat image = cv::imdecode(
       cv::Mat(1, static_cast<int>(bytes.size()), CV_8UC1, const_cast<char*>(bytes.data())), flags);
   if (image.empty()) throw InputError(path, "cannot be decoded as a PNG or JPEG image");
+  check_size(image.size());
   return image;
 }
 
 std::optional<cv::Size> pngImageSize(const fs::path& path) {
-  // Signature (8 bytes), then the IHDR chunk: length (4), "IHDR" (4), width (4), height (4), all
-  // big-endian.
   std::ifstream in(path, std::ios::binary);
   char header[24] = {};
   if (!in.read(header, sizeof header)) return std::nullopt;
   const std::string_view view(header, sizeof header);
-  if (!view.starts_with(kPngMagic) || view.substr(12, 4) != "IHDR") return std::nullopt;
-  const auto u32 = [&](std::size_t at) {
-    std::uint32_t v = 0;
-    for (std::size_t k = 0; k < 4; ++k) v = (v << 8) | static_cast<unsigned char>(header[at + k]);
-    return v;
-  };
-  const std::uint32_t width = u32(16), height = u32(20);
-  if (width == 0 || height == 0 || width > 1u << 30 || height > 1u << 30) return std::nullopt;
-  return cv::Size(static_cast<int>(width), static_cast<int>(height));
+  if (!view.starts_with(kPngMagic)) return std::nullopt;
+  const std::optional<cv::Size> size = declaredImageSize(view);
+  if (!size || size->width == 0 || size->height == 0) return std::nullopt;
+  return size;
 }
 
 }  // namespace objscan::capture::detail

@@ -67,7 +67,8 @@ std::uint64_t roomLeft(const fs::path& file, std::uint64_t reserve) {
   struct rlimit limit {};
   if (::getrlimit(RLIMIT_FSIZE, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY) {
     std::error_code ec;
-    const std::uint64_t size = fs::file_size(file, ec);
+    std::uint64_t size = fs::file_size(file, ec);
+    if (ec) size = 0;  // not created yet
     const std::uint64_t cap = static_cast<std::uint64_t>(limit.rlim_cur);
     room = std::min(room, cap > size ? cap - size : 0);
   }
@@ -141,6 +142,18 @@ OniRecorder::OniRecorder(const Options& options, openni::VideoStream& depth,
     std::error_code ec;
     fs::remove(temp_, ec);
     throw OutputError(options_.out, "cannot create the recording: " + lastError());
+  }
+  // Refused up front when not even the margin fits: OpenNI2's recorder ignores failed writes, so
+  // a file that runs out of room before the first check would be left without its frames.
+  if (const std::uint64_t room = roomLeft(temp_, options_.min_free_bytes); room < margin_bytes_) {
+    recorder_.destroy();
+    std::error_code ec;
+    fs::remove(temp_, ec);
+    throw OutputError(options_.out,
+                      "not enough room to record: " + std::to_string(room >> 10) +
+                          " kB can be written there (free disk space less the reserve, or the "
+                          "file size limit), a recording needs " +
+                          std::to_string(margin_bytes_ >> 10) + " kB at least");
   }
   if (recorder_.attach(depth_, /*allowLossyCompression=*/false) != openni::STATUS_OK ||
       (color_ != nullptr &&
@@ -251,7 +264,14 @@ RecordSummary OniRecorder::publish(const RecordingFacts& facts, const std::strin
   summary.duration_s =
       s.depth_frames > 1 ? std::chrono::duration<double>(s.last_frame - s.first_frame).count() : 0;
   std::error_code ec;
-  OniFileSummary written = inspectOniFile(temp_);
+  OniFileSummary written;
+  try {
+    written = inspectOniFile(temp_);
+  } catch (const InputError& e) {
+    // OpenNI2's recorder could not write everything (the disk filled from elsewhere).
+    throw OutputError(options_.out, std::string("the recording could not be completed (") +
+                                        e.what() + ")");
+  }
   if (written.records_end > 0 && written.records_end < written.bytes) {
     // Drop the zero padding OpenNI2 leaves after the end record: it doubles the file's size.
     fs::resize_file(temp_, written.records_end, ec);

@@ -339,15 +339,12 @@ void SevenScenesFolder::readPoses() {
 RgbdFrame SevenScenesFolder::load(std::size_t i, const Intrinsics& intrinsics) const {
   const SevenScenesFrameFiles& f = frames_.at(i);
   const fs::path depth_path = dir_ / f.depth;
-  const cv::Mat raw = detail::readImage(depth_path, cv::IMREAD_UNCHANGED);
-  if (raw.type() != CV_16UC1) {
-    throw InputError(depth_path, "depth must be a single-channel 16-bit PNG (millimetres)");
-  }
-  if (raw.cols != intrinsics.width_px || raw.rows != intrinsics.height_px) {
+  const cv::Mat raw = detail::readImage(depth_path, cv::IMREAD_UNCHANGED, [&](cv::Size size) {
+    if (size.width == intrinsics.width_px && size.height == intrinsics.height_px) return;
     std::string problem = "image is ";
-    problem.append(std::to_string(raw.cols))
+    problem.append(std::to_string(size.width))
         .append("x")
-        .append(std::to_string(raw.rows))
+        .append(std::to_string(size.height))
         .append(" but the intrinsics are for ")
         .append(std::to_string(intrinsics.width_px))
         .append("x")
@@ -356,6 +353,9 @@ RgbdFrame SevenScenesFolder::load(std::size_t i, const Intrinsics& intrinsics) c
       problem.append(" (add a camera-intrinsics.txt to the folder)");
     }
     throw InputError(depth_path, problem);
+  });
+  if (raw.type() != CV_16UC1) {
+    throw InputError(depth_path, "depth must be a single-channel 16-bit PNG (millimetres)");
   }
   RgbdFrame frame;
   frame.index = static_cast<std::int64_t>(i);
@@ -373,12 +373,12 @@ RgbdFrame SevenScenesFolder::load(std::size_t i, const Intrinsics& intrinsics) c
 
   if (!f.color.empty()) {
     const fs::path color_path = dir_ / f.color;
-    const cv::Mat bgr = detail::readImage(color_path, cv::IMREAD_COLOR);
-    if (bgr.size() != raw.size()) {
+    const cv::Mat bgr = detail::readImage(color_path, cv::IMREAD_COLOR, [&](cv::Size size) {
+      if (size == raw.size()) return;
       std::string problem = "colour image is ";
-      problem.append(std::to_string(bgr.cols))
+      problem.append(std::to_string(size.width))
           .append("x")
-          .append(std::to_string(bgr.rows))
+          .append(std::to_string(size.height))
           .append(" but the depth image ")
           .append(f.depth.string())
           .append(" is ")
@@ -386,7 +386,7 @@ RgbdFrame SevenScenesFolder::load(std::size_t i, const Intrinsics& intrinsics) c
           .append("x")
           .append(std::to_string(raw.rows));
       throw InputError(color_path, problem);
-    }
+    });
     cv::cvtColor(bgr, frame.color_rgb, cv::COLOR_BGR2RGB);
   }
   return frame;

@@ -239,18 +239,18 @@ void TumFolder::associateByTime() {
 RgbdFrame TumFolder::load(std::size_t i) const {
   const TumFrameFiles& f = frames_.at(i);
   const fs::path depth_path = dir_ / f.depth;
-  const cv::Mat raw = readImage(depth_path, cv::IMREAD_UNCHANGED);
+  const cv::Mat raw = readImage(depth_path, cv::IMREAD_UNCHANGED, [&](cv::Size size) {
+    if (size.width == intrinsics_.width_px && size.height == intrinsics_.height_px) return;
+    throw InputError(depth_path,
+                     "image is " + std::to_string(size.width) + "x" + std::to_string(size.height) +
+                         " but the intrinsics are for " + std::to_string(intrinsics_.width_px) +
+                         "x" + std::to_string(intrinsics_.height_px) +
+                         (intrinsics_from_file_ ? "" : " (add an intrinsics.json to the folder)"));
+  });
   if (raw.type() != CV_16UC1) {
     throw InputError(depth_path, "depth must be a single-channel 16-bit PNG (value / " +
                                      std::to_string(static_cast<int>(depth_factor_)) +
                                      " = metres)");
-  }
-  if (raw.cols != intrinsics_.width_px || raw.rows != intrinsics_.height_px) {
-    throw InputError(depth_path,
-                     "image is " + std::to_string(raw.cols) + "x" + std::to_string(raw.rows) +
-                         " but the intrinsics are for " + std::to_string(intrinsics_.width_px) +
-                         "x" + std::to_string(intrinsics_.height_px) +
-                         (intrinsics_from_file_ ? "" : " (add an intrinsics.json to the folder)"));
   }
   RgbdFrame frame;
   frame.index = static_cast<std::int64_t>(i);
@@ -260,9 +260,9 @@ RgbdFrame TumFolder::load(std::size_t i) const {
 
   if (!f.rgb.empty()) {
     const fs::path rgb_path = dir_ / f.rgb;
-    const cv::Mat bgr = readImage(rgb_path, cv::IMREAD_COLOR);
-    if (bgr.size() != raw.size())
-      throw InputError(rgb_path, "colour and depth images differ in size");
+    const cv::Mat bgr = readImage(rgb_path, cv::IMREAD_COLOR, [&](cv::Size size) {
+      if (size != raw.size()) throw InputError(rgb_path, "colour and depth images differ in size");
+    });
     cv::cvtColor(bgr, frame.color_rgb, cv::COLOR_BGR2RGB);
   }
   return frame;

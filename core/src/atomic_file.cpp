@@ -1,10 +1,12 @@
 #include "objscan/core/atomic_file.h"
 
 #include <fcntl.h>
+#include <signal.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <random>
@@ -36,6 +38,25 @@ fs::path temporarySibling(const fs::path& path) {
 }
 
 }  // namespace
+
+std::size_t removeStaleTemporaries(const fs::path& folder) {
+  std::size_t removed = 0;
+  std::error_code ec;
+  for (auto it = fs::recursive_directory_iterator(folder, ec);
+       !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    const std::size_t at = name.rfind(".tmp-");
+    if (at == std::string::npos || !it->is_regular_file(ec)) continue;
+    // "<pid>-<random>" after ".tmp-"
+    char* end = nullptr;
+    const long pid = std::strtol(name.c_str() + at + 5, &end, 10);
+    if (pid <= 0 || *end != '-' || pid == ::getpid()) continue;
+    if (::kill(static_cast<pid_t>(pid), 0) == 0 || errno != ESRCH) continue;  // still running
+    std::error_code remove_ec;
+    removed += fs::remove(it->path(), remove_ec) ? 1 : 0;
+  }
+  return removed;
+}
 
 void writeFileAtomically(const fs::path& path, std::string_view bytes) {
   const fs::path tmp = temporarySibling(path);

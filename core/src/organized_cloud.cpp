@@ -346,7 +346,16 @@ OrganizedCloud readPcd(const fs::path& path) {
   const PcdHeader h = parseHeader(path, bytes, pos);
   const Layout l = layoutOf(path, h);
   const std::size_t available = bytes.size() - pos;
-  if (h.data == "ascii") return decodeAscii(path, h, l, bytes, pos);
+  if (h.data == "ascii") {
+    // Each value takes a character and a separator at least: a count the data cannot hold is
+    // refused before the cloud is allocated for it.
+    if (available / 2 / std::max<std::size_t>(h.values, 1) < h.points) {
+      throw InputError(path, "the PCD is truncated: its ascii data (" + std::to_string(available) +
+                                 " bytes) cannot hold the " + std::to_string(h.points) +
+                                 " points its header declares");
+    }
+    return decodeAscii(path, h, l, bytes, pos);
+  }
   const std::size_t expected = h.points * h.point_bytes;
   if (h.data == "binary") {
     if (available < expected) {
@@ -368,6 +377,13 @@ OrganizedCloud readPcd(const fs::path& path) {
     throw InputError(path, "the PCD is truncated: its compressed data holds " +
                                std::to_string(available - sizeof sizes) + " of " +
                                std::to_string(compressed) + " bytes");
+  }
+  // LZF expands 3 bytes into 264 at most (its longest back reference): a larger claim is not
+  // LZF data, and is refused before the buffer is allocated for it.
+  constexpr std::size_t kLzfMaxExpansion = 88;
+  if (uncompressed > compressed * kLzfMaxExpansion + 8) {
+    throw InputError(path, "the PCD's compressed data is corrupt (" + std::to_string(compressed) +
+                               " bytes of LZF cannot hold " + std::to_string(uncompressed) + ")");
   }
   std::string raw(expected, '\0');
   const unsigned int got =

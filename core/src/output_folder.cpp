@@ -1,5 +1,6 @@
 #include "objscan/core/output_folder.h"
 
+#include "objscan/core/atomic_file.h"
 #include "objscan/core/log.h"
 
 #include <fcntl.h>
@@ -110,7 +111,10 @@ OutputFolderLock prepareOutputFolder(const fs::path& out) {
     throw OutputError(out, "cannot create the output folder" +
                                (ec ? ": " + ec.message() : std::string(" (a file is in the way)")));
   }
-  return OutputFolderLock(out);
+  OutputFolderLock lock(out);
+  // What runs killed mid-write left under temporary names (no other run writes here now).
+  removeStaleTemporaries(out);
+  return lock;
 }
 
 }  // namespace objscan

@@ -142,7 +142,12 @@ struct Connection {
 
   /// Throws the exception that fits SQLite's result code `rc` from `doing`.
   [[noreturn]] void fail(int rc, const std::string& doing, Access access) const {
-    const std::string message = db != nullptr ? sqlite3_errmsg(db) : sqlite3_errstr(rc);
+    std::string message = db != nullptr ? sqlite3_errmsg(db) : sqlite3_errstr(rc);
+    // An I/O error says what the system said ("disk I/O error" alone does not say "disk full").
+    if (const int e = db != nullptr ? sqlite3_system_errno(db) : 0;
+        e != 0 && ((rc & 0xff) == SQLITE_IOERR || (rc & 0xff) == SQLITE_FULL)) {
+      message.append(": ").append(std::strerror(e));
+    }
     switch (rc & 0xff) {
       case SQLITE_NOTADB:
       case SQLITE_CORRUPT:

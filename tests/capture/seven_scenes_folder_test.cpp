@@ -247,6 +247,44 @@ TEST(SevenScenesFolder, BadImagesAreInputErrorsNamingTheImage) {
                    "colour image is 8x6 but the depth image frame-000001.depth.png is 4x3");
 }
 
+// A header that declares a huge image is refused on the size it declares, before the decoder
+// allocates for it (found by the Step L audit: a 90-byte PNG declaring 32768x32768 made OpenCV
+// allocate 2 GB). A PNG's IHDR and a JPEG's SOF both say the size.
+TEST(SevenScenesFolder, ImagesDeclaringAnotherSizeAreRefusedBeforeDecoding) {
+  TempDir dir;
+  makeFolder(dir.path(), {0, 1});
+  const SevenScenesFolder folder(dir.path());
+  const fs::path depth1 = dir / "frame-000001.depth.png";
+  std::string png = testing::readBytes(depth1);
+  // IHDR's width and height (bytes 16-23, big-endian): 32768 x 32768; the data stays 4x3's, so
+  // only a check before decoding can give this message.
+  png.replace(16, 8, std::string("\x00\x00\x80\x00\x00\x00\x80\x00", 8));
+  writeBytes(depth1, png);
+  expectInputError([&] { folder.load(1); }, depth1,
+                   "image is 32768x32768 but the intrinsics are for 4x3");
+  png.replace(16, 8, std::string("\x7f\x00\x00\x00\x00\x00\x00\x03", 8));  // 2^31 wide
+  writeBytes(depth1, png);
+  expectInputError([&] { folder.load(1); }, depth1, "image is 65536x65536");
+  fs::remove(depth1);
+  cv::imwrite(depth1.string(), cv::Mat(3, 4, CV_16UC1, cv::Scalar(5)));
+
+  const fs::path color1 = dir / "frame-000001.color.png";
+  fs::remove(color1);
+  std::vector<std::uint8_t> jpeg;
+  cv::imencode(".jpg", cv::Mat(3, 4, CV_8UC3, cv::Scalar(1, 2, 3)), jpeg);
+  std::string jpg(jpeg.begin(), jpeg.end());
+  const std::size_t sof = jpg.find("\xff\xc0");
+  ASSERT_NE(sof, std::string::npos);
+  jpg.replace(sof + 5, 4, std::string("\x75\x30\x75\x30", 4));  // 30000 x 30000
+  writeBytes(dir / "frame-000001.color.jpg", jpg);
+  fs::remove(dir / "frame-000000.color.png");
+  cv::imwrite((dir / "frame-000000.color.jpg").string(), cv::Mat(3, 4, CV_8UC3));
+  const SevenScenesFolder jpg_folder(dir.path());
+  expectInputError([&] { jpg_folder.load(1); }, dir / "frame-000001.color.jpg",
+                   "colour image is 30000x30000 but the depth image");
+  EXPECT_NO_THROW(jpg_folder.load(0));
+}
+
 TEST(SevenScenesFolder, RecognisesOnlyFoldersWithDepthImages) {
   TempDir dir;
   EXPECT_FALSE(SevenScenesFolder::looksLikeSevenScenesFolder(dir.path()));

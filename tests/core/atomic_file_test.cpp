@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <cerrno>
 
 #include "objscan/core/error.h"
@@ -66,6 +68,30 @@ TEST(AtomicFile, AFileNamedNearTheNameLimitIsWritten) {
   writeFileAtomically(file, "{}");
   EXPECT_EQ(readWholeFile(file), "{}");
   EXPECT_EQ(testing::entryCount(dir.path()), 1u);
+}
+
+// What a run killed mid-write leaves (Step L): the next run into the folder removes it, but not
+// a temporary of a process that still runs, nor files that only look alike.
+TEST(AtomicFile, StaleTemporariesOfDeadWritersAreRemoved) {
+  testing::TempDir dir;
+  std::filesystem::create_directories(dir / "objects");
+  const std::string self = std::to_string(::getpid());
+  // 999999999 is past Linux's largest pid (2^22): no such process.
+  for (const char* name : {"mesh.ply.tmp-999999999-42", "objects/rank_001.ply.tmp-999999999-7",
+                           ".objscan.tmp-999999999-1"}) {
+    testing::writeBytes(dir / name, "half");
+  }
+  for (const std::string& name : {"hypotheses.json.tmp-" + self + "-3", std::string("a.tmp-1-5"),
+                                   std::string("notes.tmp-x"), std::string("mesh.ply")}) {
+    testing::writeBytes(dir / name, "kept");
+  }
+  EXPECT_EQ(removeStaleTemporaries(dir.path()), 3u);
+  EXPECT_FALSE(std::filesystem::exists(dir / "mesh.ply.tmp-999999999-42"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "objects/rank_001.ply.tmp-999999999-7"));
+  EXPECT_TRUE(std::filesystem::exists(dir / ("hypotheses.json.tmp-" + self + "-3")));
+  EXPECT_TRUE(std::filesystem::exists(dir / "a.tmp-1-5"));  // pid 1 runs
+  EXPECT_TRUE(std::filesystem::exists(dir / "notes.tmp-x"));
+  EXPECT_EQ(testing::entryCount(dir.path()), 5u);
 }
 
 TEST(AtomicFile, ReadWholeFileErrorsNameThePath) {

@@ -180,6 +180,15 @@ TEST(Pcd, BadFilesGetOneClearError) {
       std::filesystem::path(OBJSCAN_SOURCE_DIR) / "tests/core/fuzz_regressions" /
                          "pcd_ascii_rgb_past_32_bits.pcd";
   expectInputError([&] { readPcd(found); }, found, "does not fit its 32-bit field");
+  // Declared counts the data cannot hold are refused before anything is allocated for them (the
+  // Step L audit: 117 bytes of ascii PCD had the reader allocate 1.6 GB, 131 bytes of
+  // binary_compressed 1.2 GB).
+  const std::string huge = "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\n"
+                           "WIDTH 100000000\nHEIGHT 1\nPOINTS 100000000\nDATA ";
+  expect("huge_ascii.pcd", huge + "ascii\n1 2 3\n", "cannot hold the 100000000 points");
+  expect("huge_lzf.pcd",
+         huge + "binary_compressed\n" + std::string("\x00\x00\x00\x00\x00\x8c\x86\x47", 8),
+         "0 bytes of LZF cannot hold 1200000000");
 }
 
 TEST(OrganizedMesh, JoinsNeighboursFacingTheCameraAndCutsDepthJumps) {

@@ -1,5 +1,6 @@
 #pragma once
 
+#include <cstddef>
 #include <filesystem>
 #include <string_view>
 
@@ -10,6 +11,11 @@ namespace objscan {
 /// (fsync), and is renamed over `path`. Throws OutputError naming the path on any failure, after
 /// removing the temporary file.
 void writeFileAtomically(const std::filesystem::path& path, std::string_view bytes);
+
+/// Removes, under `folder` (recursively), the temporary files writeFileAtomically leaves when its
+/// process is killed mid-write ("NAME.tmp-PID-N"), where process PID no longer runs. Returns how
+/// many it removed. For a folder this process holds (OutputFolderLock).
+std::size_t removeStaleTemporaries(const std::filesystem::path& folder);
 
 /// Whether a file can be created in `folder`: creates and removes a probe file there, since
 /// permissions alone do not say it (root, read-only mounts, virtual file systems). Returns 0, or
