@@ -33,6 +33,7 @@ struct ChildRun {
 
 /// Runs `work` in a child process (its exit status is work's return value) and measures it.
 ChildRun inChild(const std::function<int()>& work) {
+  std::fflush(stdout);  // or the child prints what this process has buffered again
   const auto start = std::chrono::steady_clock::now();
   const pid_t pid = fork();
   if (pid < 0) throw std::runtime_error("fork failed");

@@ -480,6 +480,17 @@ std::string ObjectnessModel::parameters() const {
 
 namespace {
 
+/// A JSON integer that fits an int (nlohmann's get<int>() converts a float or a larger integer
+/// with undefined behaviour: fuzz_model found "objscan_model": 2e+92).
+int wholeNumber(const nlohmann::json& j, const char* what) {
+  if (!j.is_number_integer()) throw std::invalid_argument(std::string(what) + " must be a whole number");
+  const auto v = j.get<std::int64_t>();  // an unsigned past int64's range wraps negative: refused
+  if (v < std::numeric_limits<int>::min() || v > std::numeric_limits<int>::max()) {
+    throw std::invalid_argument(std::string(what) + " is out of range");
+  }
+  return static_cast<int>(v);
+}
+
 double finiteNumber(const nlohmann::json& j, const char* what) {
   if (!j.is_number()) throw std::invalid_argument(std::string(what) + " must be a number");
   const double v = j.get<double>();
@@ -586,7 +597,7 @@ ObjectnessModel ObjectnessModel::load(const std::filesystem::path& path) {
   }
   auto impl = std::make_shared<Impl>();
   try {
-    const int version = j.at("objscan_model").get<int>();
+    const int version = wholeNumber(j.at("objscan_model"), "objscan_model (the version)");
     if (version > kModelFileVersion) {
       throw bad("model file version " + std::to_string(version) +
                 " is newer than this objscan's (" + std::to_string(kModelFileVersion) + ")");
@@ -610,7 +621,7 @@ ObjectnessModel ObjectnessModel::load(const std::filesystem::path& path) {
     std::copy(sd.begin(), sd.end(), impl->normaliser.sd.begin());
     impl->params.c = finiteNumber(j.at("C"), "C");
     impl->params.gamma = finiteNumber(j.at("gamma"), "gamma");
-    impl->params.k = j.at("k").get<int>();
+    impl->params.k = wholeNumber(j.at("k"), "k");
     impl->sign = finiteNumber(j.at("sign"), "sign") < 0 ? -1.0 : 1.0;
     const double cv_ap = j.value("cross_validated_ap", -1.0);
     if (cv_ap >= 0.0 && cv_ap <= 1.0) impl->cv_ap = cv_ap;
@@ -654,12 +665,15 @@ ObjectnessModel ObjectnessModel::load(const std::filesystem::path& path) {
         const auto& n = j.at("knn");
         impl->knn_samples =
             matrixFromJson(n.at("samples"), static_cast<int>(used), "the nearest_neighbour samples");
-        impl->knn_labels = n.at("labels").get<std::vector<int>>();
-        if (impl->knn_labels.size() != static_cast<std::size_t>(impl->knn_samples.rows)) {
+        const auto& labels = n.at("labels");
+        if (!labels.is_array() || labels.size() != static_cast<std::size_t>(impl->knn_samples.rows)) {
           throw bad("the nearest_neighbour labels must be one per sample");
         }
-        for (const int label : impl->knn_labels) {
-          if (label != 0 && label != 1) throw bad("nearest_neighbour labels are 0 or 1");
+        for (const auto& label : labels) {
+          impl->knn_labels.push_back(wholeNumber(label, "a nearest_neighbour label"));
+          if (impl->knn_labels.back() != 0 && impl->knn_labels.back() != 1) {
+            throw bad("nearest_neighbour labels are 0 or 1");
+          }
         }
         if (impl->params.k < 1 || impl->params.k > impl->knn_samples.rows) {
           throw bad("k must be between 1 and the number of samples");

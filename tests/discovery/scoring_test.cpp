@@ -226,6 +226,14 @@ TEST(ObjectnessModel, DamagedModelFilesNameWhatIsWrong) {
   const std::string knn = saved(ScoreKind::kNearestNeighbour);
   expectRefused(replaced(knn, "\"labels\": [", "\"labels\": [7, "), "one per sample");
   expectRefused(replaced(knn, "\"k\":", "\"k\": 100000, \"x\":"), "k must be between");
+  // Numbers past an int where an int belongs (converting them was undefined behaviour; found by
+  // fuzz_model: tests/discovery/fuzz_regressions/model_version_past_int.json).
+  expectRefused(replaced(knn, "\"k\":", "\"k\": 1e300, \"x\":"), "k must be a whole number");
+  expectRefused(replaced(knn, "\"labels\": [", "\"labels\": [4294967297, "), "one per sample");
+  const auto found = std::filesystem::path(OBJSCAN_SOURCE_DIR) /
+                     "tests/discovery/fuzz_regressions/model_version_past_int.json";
+  testing::expectInputError([&] { ObjectnessModel::load(found); }, found,
+                            "objscan_model (the version) must be a whole number");
   const std::string bayes = saved(ScoreKind::kNaiveBayes);
   expectRefused(replaced(bayes, "\"var0\": [", "\"var0\": [-1, "), "one per measure");
 }
