@@ -1,20 +1,18 @@
 // Memory on a large scene (Step L): a mesh of about 3 million vertices, made of copies of a fused
 // scene laid side by side, goes through `objscan info`, `objscan discover` and `objscan render`,
 // each in its own process; the figure is the kernel's peak resident set of that process
-// (wait4's ru_maxrss). The peer: Open3D reading the same file, also in a process of its own.
+// (ru_maxrss, taken by peak_memory). The peer: Open3D reading the same file, also in a process of
+// its own.
 //
 // Usage: large_mesh_bench SCENE.ply [--vertices N]   (N defaults to 3000000)
 
-#include <sys/resource.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
-#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
-#include <functional>
 #include <open3d/io/TriangleMeshIO.h>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -31,34 +29,29 @@ struct ChildRun {
   double peak_mb = 0.0;
 };
 
-/// Runs `work` in a child process (its exit status is work's return value) and measures it.
-ChildRun inChild(const std::function<int()>& work) {
-  std::fflush(stdout);  // or the child prints what this process has buffered again
-  const auto start = std::chrono::steady_clock::now();
-  const pid_t pid = fork();
-  if (pid < 0) throw std::runtime_error("fork failed");
-  if (pid == 0) _exit(work());
-  int status = 0;
-  rusage usage{};
-  if (wait4(pid, &status, 0, &usage) != pid) throw std::runtime_error("wait4 failed");
+/// Runs `argv` under peak_memory (see peak_memory.cpp for why not from this process) and reads
+/// its figures.
+ChildRun measured(std::vector<std::string> argv) {
+  argv.insert(argv.begin(), OBJSCAN_PEAK_MEMORY);
+  std::string command;
+  for (const std::string& a : argv) command.append("'").append(a).append("' ");
+  command.append("2>/dev/null");
+  FILE* out = popen(command.c_str(), "r");
+  if (out == nullptr) throw std::runtime_error("cannot run " + argv[0]);
   ChildRun r;
-  r.status = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  r.peak_mb = static_cast<double>(usage.ru_maxrss) / 1024.0;  // ru_maxrss is in kB on Linux
+  char line[4096];
+  long kb = 0;
+  while (std::fgets(line, sizeof line, out) != nullptr) {
+    std::sscanf(line, "peak_memory %ld %lf %d", &kb, &r.seconds, &r.status);
+  }
+  pclose(out);
+  r.peak_mb = static_cast<double>(kb) / 1024.0;
   return r;
 }
 
 ChildRun runObjscan(std::vector<std::string> args) {
-  return inChild([&] {
-    std::vector<char*> argv;
-    args.insert(args.begin(), "--quiet");
-    args.insert(args.begin(), OBJSCAN_EXE);
-    for (std::string& a : args) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    if (std::freopen("/dev/null", "w", stdout) == nullptr) return 127;
-    execv(argv[0], argv.data());
-    return 127;
-  });
+  args.insert(args.begin(), {OBJSCAN_EXE, "--quiet"});
+  return measured(args);
 }
 
 /// Copies of `scene` on a grid, each moved past the last by its width and a 0.5 m gap, until the
@@ -88,6 +81,10 @@ objscan::TriangleMesh tiled(const objscan::TriangleMesh& scene, std::size_t vert
 }  // namespace
 
 int main(int argc, char** argv) {
+  if (argc == 3 && std::string(argv[1]) == "--open3d-read") {  // the peer, run by peak_memory
+    open3d::geometry::TriangleMesh mesh;
+    return open3d::io::ReadTriangleMesh(argv[2], mesh) && !mesh.vertices_.empty() ? 0 : 1;
+  }
   if (argc < 2) {
     std::fprintf(stderr, "usage: large_mesh_bench SCENE.ply [--vertices N]\n");
     return 2;
@@ -108,10 +105,8 @@ int main(int argc, char** argv) {
   }
   const double file_mb = static_cast<double>(fs::file_size(big)) / (1024.0 * 1024.0);
 
-  const ChildRun open3d = inChild([&] {
-    open3d::geometry::TriangleMesh mesh;
-    return open3d::io::ReadTriangleMesh(big.string(), mesh) && !mesh.vertices_.empty() ? 0 : 1;
-  });
+  const ChildRun open3d =
+      measured({fs::read_symlink("/proc/self/exe").string(), "--open3d-read", big.string()});
   const ChildRun info = runObjscan({"info", big.string()});
   const ChildRun discover =
       runObjscan({"discover", big.string(), "--no-catalog", "--out", (dir / "results").string()});

@@ -5,6 +5,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
@@ -39,18 +40,35 @@ fs::path temporarySibling(const fs::path& path) {
 
 }  // namespace
 
+namespace {
+
+/// The writer's pid when `name` is exactly what temporarySibling makes ("NAME.tmp-PID-N" with N
+/// below 10^9, or ".objscan.tmp-PID-N"); 0 for any other name.
+long temporaryWriter(const std::string& name) {
+  const std::size_t at = name.rfind(".tmp-");
+  if (at == std::string::npos || at == 0) return 0;
+  const auto digits = [&](std::size_t from, std::size_t to) {
+    return to > from && std::all_of(name.begin() + static_cast<std::ptrdiff_t>(from),
+                                     name.begin() + static_cast<std::ptrdiff_t>(to),
+                                     [](char c) { return c >= '0' && c <= '9'; });
+  };
+  const std::size_t dash = name.find('-', at + 5);
+  if (dash == std::string::npos || !digits(at + 5, dash) || dash - at - 5 > 9 ||
+      !digits(dash + 1, name.size()) || name.size() - dash - 1 > 9) {
+    return 0;
+  }
+  return std::strtol(name.c_str() + at + 5, nullptr, 10);
+}
+
+}  // namespace
+
 std::size_t removeStaleTemporaries(const fs::path& folder) {
   std::size_t removed = 0;
   std::error_code ec;
-  for (auto it = fs::recursive_directory_iterator(folder, ec);
-       !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
-    const std::string name = it->path().filename().string();
-    const std::size_t at = name.rfind(".tmp-");
-    if (at == std::string::npos || !it->is_regular_file(ec)) continue;
-    // "<pid>-<random>" after ".tmp-"
-    char* end = nullptr;
-    const long pid = std::strtol(name.c_str() + at + 5, &end, 10);
-    if (pid <= 0 || *end != '-' || pid == ::getpid()) continue;
+  for (auto it = fs::directory_iterator(folder, ec); !ec && it != fs::directory_iterator();
+       it.increment(ec)) {
+    const long pid = temporaryWriter(it->path().filename().string());
+    if (pid <= 0 || pid == ::getpid() || !it->is_regular_file(ec) || it->is_symlink(ec)) continue;
     if (::kill(static_cast<pid_t>(pid), 0) == 0 || errno != ESRCH) continue;  // still running
     std::error_code remove_ec;
     removed += fs::remove(it->path(), remove_ec) ? 1 : 0;

@@ -347,9 +347,9 @@ OrganizedCloud readPcd(const fs::path& path) {
   const Layout l = layoutOf(path, h);
   const std::size_t available = bytes.size() - pos;
   if (h.data == "ascii") {
-    // Each value takes a character and a separator at least: a count the data cannot hold is
-    // refused before the cloud is allocated for it.
-    if (available / 2 / std::max<std::size_t>(h.values, 1) < h.points) {
+    // Each value takes a character and, but for the last, a separator: a count the data cannot
+    // hold is refused before the cloud is allocated for it.
+    if ((available + 1) / 2 / std::max<std::size_t>(h.values, 1) < h.points) {
       throw InputError(path, "the PCD is truncated: its ascii data (" + std::to_string(available) +
                                  " bytes) cannot hold the " + std::to_string(h.points) +
                                  " points its header declares");

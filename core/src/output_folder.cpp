@@ -112,8 +112,10 @@ OutputFolderLock prepareOutputFolder(const fs::path& out) {
                                (ec ? ": " + ec.message() : std::string(" (a file is in the way)")));
   }
   OutputFolderLock lock(out);
-  // What runs killed mid-write left under temporary names (no other run writes here now).
-  removeStaleTemporaries(out);
+  // What runs killed mid-write left under temporary names (objects/ and renders/ are written
+  // whole as NAME.partial, which the next run replaces); only when the lock is really held, so
+  // that no other run writes here now.
+  if (lock.held()) removeStaleTemporaries(out);
   return lock;
 }
 

@@ -145,7 +145,7 @@ struct Connection {
     std::string message = db != nullptr ? sqlite3_errmsg(db) : sqlite3_errstr(rc);
     // An I/O error says what the system said ("disk I/O error" alone does not say "disk full").
     if (const int e = db != nullptr ? sqlite3_system_errno(db) : 0;
-        e != 0 && ((rc & 0xff) == SQLITE_IOERR || (rc & 0xff) == SQLITE_FULL)) {
+        e != 0 && (rc & 0xff) == SQLITE_IOERR) {  // the only code SQLite keeps errno for
       message.append(": ").append(std::strerror(e));
     }
     switch (rc & 0xff) {

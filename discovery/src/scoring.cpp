@@ -125,8 +125,10 @@ struct SvmDecision {
     return d;
   }
 
-  double value(const float* x) const {
-    double sum = -rho;
+  /// The decision value; `magnitude` (optional) gets |rho| + sum_i |alpha_i K_i|, the scale of
+  /// the rounding error of a sum computed in float.
+  double value(const float* x, double* magnitude = nullptr) const {
+    double sum = -rho, size = std::abs(rho);
     for (int i = 0; i < vectors.rows; ++i) {
       const float* v = vectors.ptr<float>(i);
       double k = 0.0;
@@ -134,8 +136,11 @@ struct SvmDecision {
         k += gamma > 0.0 ? (v[j] - x[j]) * static_cast<double>(v[j] - x[j])
                          : static_cast<double>(v[j]) * x[j];
       }
-      sum += alpha[static_cast<std::size_t>(i)] * (gamma > 0.0 ? std::exp(-gamma * k) : k);
+      const double term = alpha[static_cast<std::size_t>(i)] * (gamma > 0.0 ? std::exp(-gamma * k) : k);
+      sum += term;
+      size += std::abs(term);
     }
+    if (magnitude != nullptr) *magnitude = size;
     return sum;
   }
 };
@@ -185,8 +190,10 @@ void ObjectnessModel::Impl::fit(const cv::Mat& x, const std::vector<int>& y) {
       cv::Mat opencv_raw;
       trained->predict(x, opencv_raw, cv::ml::StatModel::RAW_OUTPUT);
       for (int r = 0; r < x.rows; ++r) {
-        const double ours = svm.value(x.ptr<float>(r)), theirs = opencv_raw.at<float>(r);
-        if (std::abs(ours - theirs) > 1e-3 * (1.0 + std::abs(theirs))) {
+        double magnitude = 0.0;
+        const double ours = svm.value(x.ptr<float>(r), &magnitude);
+        const double theirs = opencv_raw.at<float>(r);
+        if (std::abs(ours - theirs) > 1e-4 * (1.0 + magnitude)) {
           throw std::logic_error("the SVM's decision function read from OpenCV gives " +
                                  std::to_string(ours) + " where OpenCV gives " +
                                  std::to_string(theirs));
@@ -484,17 +491,24 @@ namespace {
 /// with undefined behaviour: fuzz_model found "objscan_model": 2e+92).
 int wholeNumber(const nlohmann::json& j, const char* what) {
   if (!j.is_number_integer()) throw std::invalid_argument(std::string(what) + " must be a whole number");
-  const auto v = j.get<std::int64_t>();  // an unsigned past int64's range wraps negative: refused
-  if (v < std::numeric_limits<int>::min() || v > std::numeric_limits<int>::max()) {
+  const bool too_big = j.is_number_unsigned() && j.get<std::uint64_t>() > std::numeric_limits<int>::max();
+  const auto v = too_big ? std::int64_t{0} : j.get<std::int64_t>();
+  if (too_big || v < std::numeric_limits<int>::min() || v > std::numeric_limits<int>::max()) {
     throw std::invalid_argument(std::string(what) + " is out of range");
   }
   return static_cast<int>(v);
 }
 
+/// Every number of a model lies within +-1e30 (a trained model's lie within a few thousand): then
+/// no score a model computes can overflow to an infinity or a NaN, which ranking cannot order.
+constexpr double kLargestModelNumber = 1e30;
+
 double finiteNumber(const nlohmann::json& j, const char* what) {
   if (!j.is_number()) throw std::invalid_argument(std::string(what) + " must be a number");
   const double v = j.get<double>();
-  if (!std::isfinite(v)) throw std::invalid_argument(std::string(what) + " is not finite");
+  if (!(std::abs(v) <= kLargestModelNumber)) {
+    throw std::invalid_argument(std::string(what) + " is not finite or out of range");
+  }
   return v;
 }
 
@@ -508,7 +522,9 @@ std::vector<double> finiteNumbers(const nlohmann::json& j, std::size_t n, const 
                                 " numbers, one per measure");
   }
   for (const double x : v) {
-    if (!std::isfinite(x)) throw std::invalid_argument(std::string(what) + " is not finite");
+    if (!(std::abs(x) <= kLargestModelNumber)) {
+      throw std::invalid_argument(std::string(what) + " is not finite or out of range");
+    }
   }
   return v;
 }
@@ -533,9 +549,6 @@ cv::Mat matrixFromJson(const nlohmann::json& j, int cols, const char* what) {
     const auto row = finiteNumbers(j[r], static_cast<std::size_t>(cols), what);
     for (int c = 0; c < cols; ++c) {
       const double v = row[static_cast<std::size_t>(c)];
-      if (std::abs(v) > std::numeric_limits<float>::max()) {
-        throw std::invalid_argument(std::string(what) + " holds a number past float's range");
-      }
       m.at<float>(static_cast<int>(r), c) = static_cast<float>(v);
     }
   }
@@ -639,7 +652,9 @@ ObjectnessModel ObjectnessModel::load(const std::filesystem::path& path) {
         nb.var[1] = finiteNumbers(b.at("var1"), used, "naive_bayes var1");
         for (int c = 0; c < 2; ++c) {
           for (const double v : nb.var[c]) {
-            if (!(v > 0.0)) throw bad("naive_bayes variances must be positive");
+            if (!(v >= 1.0 / kLargestModelNumber)) {
+              throw bad("naive_bayes variances must be positive (1e-30 at least)");
+            }
           }
         }
         nb.log_prior[0] = finiteNumber(b.at("log_prior0"), "naive_bayes log_prior0");

@@ -390,7 +390,8 @@ TEST(DiscoverCli, BadInputGivesOneErrorLine) {
                       "vertex_indices\nend_header\n0 0 nan\n1 0 0\n0 1 0\n3 0 1 2\n");
   writePly(dir / "good.ply", twoMounds());
   testing::writeBytes(dir / "corrupt.sqlite", std::string(4096, 'x'));
-  testing::writeBytes(dir / "model.yml", "%YAML:1.0\n---\nsomething_else: 1\n");
+  testing::writeBytes(dir / "model.json", "{\"something_else\": 1}\n");
+  testing::writeBytes(dir / "model.yml", "%YAML:1.0\n---\nobjscan_model: 1\nkind: average\n");
   expectOneErrorLine(
       objscan({"discover", (dir / "missing.ply").string(), "--out", out, "--no-catalog"}), 2,
       "missing.ply");
@@ -407,8 +408,12 @@ TEST(DiscoverCli, BadInputGivesOneErrorLine) {
                               (dir / "corrupt.sqlite").string()}),
                      2, "corrupt.sqlite");
   expectOneErrorLine(objscan({"discover", (dir / "good.ply").string(), "--out", out, "--no-catalog",
+                              "--model", (dir / "model.json").string()}),
+                     2, "model.json: not an objscan model");
+  // A model objscan wrote before model files were JSON: refused, saying to train it again.
+  expectOneErrorLine(objscan({"discover", (dir / "good.ply").string(), "--out", out, "--no-catalog",
                               "--model", (dir / "model.yml").string()}),
-                     2, "model.yml: not an objscan model");
+                     2, "model.yml: an objscan model in the old YAML form");
   // The corrupt catalog is left as it was.
   EXPECT_EQ(readWholeFile(dir / "corrupt.sqlite"), std::string(4096, 'x'));
 }

@@ -12,6 +12,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <csignal>
 #include <cstdlib>
@@ -226,13 +227,17 @@ TEST_F(Faults, KilledAtRandomMomentsLeavesOnlyValidOutputsAndARerunSucceeds) {
   std::mt19937 random(20261126);
   for (const Command& c : commands(root.path())) {
     SCOPED_TRACE(c.name);
-    // How long an undisturbed run takes: the kills fall anywhere in it.
-    const auto start = Clock::now();
-    const ProcessResult first = testing::runProcess(argvOf(c));
-    const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
-    ASSERT_EQ(first.exit_code, 0) << first.err;
-    expectValidOutputs(checkedFolder(c));
-    std::uniform_real_distribution<double> moment(0.0, seconds);
+    // How long an undisturbed run takes (the shorter of two: the second finds the files cached):
+    // the kills fall anywhere in its first 90 %.
+    double seconds = 1e9;
+    for (int run = 0; run < 2; ++run) {
+      const auto start = Clock::now();
+      const ProcessResult undisturbed = testing::runProcess(argvOf(c));
+      seconds = std::min(seconds, std::chrono::duration<double>(Clock::now() - start).count());
+      ASSERT_EQ(undisturbed.exit_code, 0) << undisturbed.err;
+      expectValidOutputs(checkedFolder(c));
+    }
+    std::uniform_real_distribution<double> moment(0.0, 0.9 * seconds);
     int killed = 0;
     for (int i = 0; i < kills; ++i) {
       if (c.name == "discover") writeScene(root.path(), i + 1);
@@ -301,10 +306,18 @@ TEST_F(Faults, ATinyFileSizeLimitIsOneErrorLineAndLeavesNoHalfFile) {
 
 TEST_F(Faults, AFullDiskIsOneErrorLineAndLeavesNoHalfFile) {
   // A 300 kB tmpfs mounted in a private mount namespace (unshare -rm: no root needed), written
-  // to by the real command, then copied out to be checked.
+  // to by the real command, then copied out to be checked. The paths reach the shell as its
+  // arguments, never inside the script's text.
   TempDir root;
   const fs::path mount = root / "disk", copy = root / "copy";
   fs::create_directories(mount);
+  const ProcessResult probe = testing::runProcess(
+      {"/usr/bin/unshare", "-rm", "/bin/sh", "-c", "mount -t tmpfs -o size=300k tmpfs \"$0\"",
+       mount.string()});
+  ASSERT_EQ(probe.exit_code, 0)
+      << "this test mounts a tmpfs in a user and mount namespace (unshare -rm, util-linux), which "
+         "this machine does not allow: "
+      << probe.err;
   for (Command c : commands(mount)) {
     SCOPED_TRACE(c.name);
     fs::remove_all(copy);
@@ -313,13 +326,14 @@ TEST_F(Faults, AFullDiskIsOneErrorLineAndLeavesNoHalfFile) {
     for (std::string& a : c.args) {
       if (a == (mount / "scene.ply").string()) a = mesh_.string();
     }
-    std::string line;
-    for (const std::string& a : argvOf(c)) line.append("'").append(a).append("' ");
-    const std::string script = "mount -t tmpfs -o size=300k tmpfs '" + mount.string() +
-                               "' || exit 99; mkdir -p '" + (mount / "rec").string() + "'; " +
-                               line + "; rc=$?; cp -a '" + mount.string() + "/.' '" +
-                               copy.string() + "/'; exit $rc";
-    const ProcessResult r = testing::runProcess({"/usr/bin/unshare", "-rm", "/bin/sh", "-c", script});
+    // sh -c SCRIPT MOUNT COPY objscan ARGS...: $0 is the mount point, $1 the copy, "$@" the run.
+    const std::string script =
+        "mount -t tmpfs -o size=300k tmpfs \"$0\" || exit 99; mkdir -p \"$0/rec\"; copy=$1; "
+        "shift; \"$@\"; rc=$?; cp -a \"$0/.\" \"$copy/\"; exit $rc";
+    std::vector<std::string> argv = {"/usr/bin/unshare", "-rm", "/bin/sh", "-c", script,
+                                     mount.string(),     copy.string()};
+    for (const std::string& a : argvOf(c)) argv.push_back(a);
+    const ProcessResult r = testing::runProcess(argv);
     ASSERT_NE(r.exit_code, 99) << "cannot mount a tmpfs for the test: " << r.err;
     expectFailedCleanly(c, r);
     const fs::path written = copy / fs::relative(checkedFolder(c), mount);

@@ -262,9 +262,14 @@ TEST(SevenScenesFolder, ImagesDeclaringAnotherSizeAreRefusedBeforeDecoding) {
   writeBytes(depth1, png);
   expectInputError([&] { folder.load(1); }, depth1,
                    "image is 32768x32768 but the intrinsics are for 4x3");
-  png.replace(16, 8, std::string("\x7f\x00\x00\x00\x00\x00\x00\x03", 8));  // 2^31 wide
+  png.replace(16, 8, std::string("\x7f\x00\x00\x00\x00\x00\x00\x03", 8));
   writeBytes(depth1, png);
-  expectInputError([&] { folder.load(1); }, depth1, "image is 65536x65536");
+  expectInputError([&] { folder.load(1); }, depth1, "image is 2130706432x3");
+  // Only PNG and JPEG are decoded: a BMP (whose header objscan does not read) is refused.
+  std::vector<std::uint8_t> bmp;
+  cv::imencode(".bmp", cv::Mat(3, 4, CV_8UC1, cv::Scalar(5)), bmp);
+  writeBytes(depth1, std::string(bmp.begin(), bmp.end()));
+  expectInputError([&] { folder.load(1); }, depth1, "not a PNG or JPEG image");
   fs::remove(depth1);
   cv::imwrite(depth1.string(), cv::Mat(3, 4, CV_16UC1, cv::Scalar(5)));
 
@@ -276,6 +281,7 @@ TEST(SevenScenesFolder, ImagesDeclaringAnotherSizeAreRefusedBeforeDecoding) {
   const std::size_t sof = jpg.find("\xff\xc0");
   ASSERT_NE(sof, std::string::npos);
   jpg.replace(sof + 5, 4, std::string("\x75\x30\x75\x30", 4));  // 30000 x 30000
+  jpg.insert(sof, "\x12\x34");  // stray bytes before the frame header, which libjpeg skips
   writeBytes(dir / "frame-000001.color.jpg", jpg);
   fs::remove(dir / "frame-000000.color.png");
   cv::imwrite((dir / "frame-000000.color.jpg").string(), cv::Mat(3, 4, CV_8UC3));
@@ -283,6 +289,18 @@ TEST(SevenScenesFolder, ImagesDeclaringAnotherSizeAreRefusedBeforeDecoding) {
   expectInputError([&] { jpg_folder.load(1); }, dir / "frame-000001.color.jpg",
                    "colour image is 30000x30000 but the depth image");
   EXPECT_NO_THROW(jpg_folder.load(0));
+
+  // With a camera-intrinsics.txt the image size is frame 0's own: a PNG that declares more
+  // pixels than its compressed data can hold (deflate: 1032 bytes out per byte in at most).
+  TempDir big;
+  makeFolder(big.path(), {0});
+  std::string header = testing::readBytes(big / "frame-000000.depth.png");
+  header.replace(16, 8, std::string("\x00\x00\x40\x00\x00\x00\x40\x00", 8));  // 16384^2
+  writeBytes(big / "frame-000000.depth.png", header);
+  const SevenScenesFolder big_folder(big.path());
+  EXPECT_EQ(big_folder.intrinsics().width_px, 16384);
+  expectInputError([&] { big_folder.load(0); }, big / "frame-000000.depth.png",
+                   "declares 16384x16384 pixels, more than its compressed data can hold");
 }
 
 TEST(SevenScenesFolder, RecognisesOnlyFoldersWithDepthImages) {

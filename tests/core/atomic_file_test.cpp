@@ -77,21 +77,24 @@ TEST(AtomicFile, StaleTemporariesOfDeadWritersAreRemoved) {
   std::filesystem::create_directories(dir / "objects");
   const std::string self = std::to_string(::getpid());
   // 999999999 is past Linux's largest pid (2^22): no such process.
-  for (const char* name : {"mesh.ply.tmp-999999999-42", "objects/rank_001.ply.tmp-999999999-7",
-                           ".objscan.tmp-999999999-1"}) {
+  for (const char* name : {"mesh.ply.tmp-999999999-42", ".objscan.tmp-999999999-1"}) {
     testing::writeBytes(dir / name, "half");
   }
-  for (const std::string& name : {"hypotheses.json.tmp-" + self + "-3", std::string("a.tmp-1-5"),
-                                   std::string("notes.tmp-x"), std::string("mesh.ply")}) {
+  // Kept: a live writer's (this process, pid 1), names that only look alike, a subfolder's.
+  for (const std::string& name :
+       {"hypotheses.json.tmp-" + self + "-3", std::string("a.tmp-1-5"), std::string("notes.tmp-x"),
+        std::string("photo.tmp-999999999-1.jpg"), std::string("backup.tmp-2024-01-05"),
+        std::string("x.tmp-999999999-1234567890"), std::string("objects/r.ply.tmp-999999999-7"),
+        std::string("mesh.ply")}) {
     testing::writeBytes(dir / name, "kept");
   }
-  EXPECT_EQ(removeStaleTemporaries(dir.path()), 3u);
+  EXPECT_EQ(removeStaleTemporaries(dir.path()), 2u);
   EXPECT_FALSE(std::filesystem::exists(dir / "mesh.ply.tmp-999999999-42"));
-  EXPECT_FALSE(std::filesystem::exists(dir / "objects/rank_001.ply.tmp-999999999-7"));
+  EXPECT_FALSE(std::filesystem::exists(dir / ".objscan.tmp-999999999-1"));
   EXPECT_TRUE(std::filesystem::exists(dir / ("hypotheses.json.tmp-" + self + "-3")));
   EXPECT_TRUE(std::filesystem::exists(dir / "a.tmp-1-5"));  // pid 1 runs
-  EXPECT_TRUE(std::filesystem::exists(dir / "notes.tmp-x"));
-  EXPECT_EQ(testing::entryCount(dir.path()), 5u);
+  EXPECT_TRUE(std::filesystem::exists(dir / "objects/r.ply.tmp-999999999-7"));
+  EXPECT_EQ(testing::entryCount(dir.path()), 8u);
 }
 
 TEST(AtomicFile, ReadWholeFileErrorsNameThePath) {

@@ -2,6 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <functional>
+#include <nlohmann/json.hpp>
+
 #include <cmath>
 #include <random>
 #include <stdexcept>
@@ -200,42 +203,59 @@ TEST(ObjectnessModel, DamagedModelFilesNameWhatIsWrong) {
   const auto saved = [&](ScoreKind kind) {
     const auto path = dir / (std::string(toString(kind)) + ".json");
     ObjectnessModel::train(kind, MeasureNormaliser{}, rows, labels).save(path);
-    return testing::readBytes(path);
+    return nlohmann::json::parse(testing::readBytes(path));
   };
   const auto expectRefused = [&](const std::string& text, const std::string& why) {
     testing::writeBytes(dir / "damaged.json", text);
     try {
       ObjectnessModel::load(dir / "damaged.json");
-      ADD_FAILURE() << "loaded: " << text.substr(0, 200);
+      ADD_FAILURE() << "loaded: " << text.substr(0, 300);
     } catch (const InputError& e) {
       EXPECT_NE(std::string(e.what()).find(why), std::string::npos) << e.what();
       EXPECT_NE(std::string(e.what()).find("damaged.json"), std::string::npos) << e.what();
     }
   };
-  const auto replaced = [](std::string text, const std::string& from, const std::string& to) {
-    const auto at = text.find(from);
-    EXPECT_NE(at, std::string::npos) << from;
-    return at == std::string::npos ? text : text.replace(at, from.size(), to);
+  // `model` with `change` made to it is refused, saying `why`.
+  const auto expectChangeRefused = [&](nlohmann::json model,
+                                       const std::function<void(nlohmann::json&)>& change,
+                                       const std::string& why) {
+    change(model);
+    expectRefused(model.dump(), why);
   };
-  const std::string svm = saved(ScoreKind::kRbfSvm);
-  expectRefused(replaced(svm, "\"alpha\": [", "\"alpha\": [1.0, "), "one per support vector");
-  expectRefused(replaced(svm, "\"rho\":", "\"rho\": null, \"x\":"), "rho");
-  expectRefused(replaced(svm, "\"support_vectors\": [", "\"support_vectors\": [[1, 2], "),
-                "one per measure");
-  expectRefused(replaced(svm, "\"svm\":", "\"not_svm\":"), "without its support vectors");
-  const std::string knn = saved(ScoreKind::kNearestNeighbour);
-  expectRefused(replaced(knn, "\"labels\": [", "\"labels\": [7, "), "one per sample");
-  expectRefused(replaced(knn, "\"k\":", "\"k\": 100000, \"x\":"), "k must be between");
+  // The untouched files load: each refusal below is the change's doing.
+  const nlohmann::json svm = saved(ScoreKind::kRbfSvm);
+  const nlohmann::json knn = saved(ScoreKind::kNearestNeighbour);
+  const nlohmann::json bayes = saved(ScoreKind::kNaiveBayes);
+  for (const auto* model : {&svm, &knn, &bayes}) {
+    testing::writeBytes(dir / "intact.json", model->dump());
+    EXPECT_NO_THROW(ObjectnessModel::load(dir / "intact.json"));
+  }
+  using J = nlohmann::json;
+  expectChangeRefused(svm, [](J& m) { m["svm"]["alpha"].push_back(1.0); }, "one per support vector");
+  expectChangeRefused(svm, [](J& m) { m["svm"]["rho"] = nullptr; }, "rho must be a number");
+  expectChangeRefused(svm, [](J& m) { m["svm"]["rho"] = 1e31; }, "rho is not finite or out of range");
+  expectChangeRefused(svm, [](J& m) { m["svm"]["support_vectors"][0] = {1, 2}; },
+                      "must hold 6 numbers, one per measure");
+  expectChangeRefused(svm, [](J& m) { m.erase("svm"); }, "without its support vectors");
+  expectChangeRefused(knn, [](J& m) { m["knn"]["labels"][0] = 7; }, "labels are 0 or 1");
+  expectChangeRefused(knn, [](J& m) { m["knn"]["labels"].push_back(1); }, "one per sample");
+  expectChangeRefused(knn, [](J& m) { m["k"] = 100000; }, "k must be between");
   // Numbers past an int where an int belongs (converting them was undefined behaviour; found by
   // fuzz_model: tests/discovery/fuzz_regressions/model_version_past_int.json).
-  expectRefused(replaced(knn, "\"k\":", "\"k\": 1e300, \"x\":"), "k must be a whole number");
-  expectRefused(replaced(knn, "\"labels\": [", "\"labels\": [4294967297, "), "one per sample");
+  expectChangeRefused(knn, [](J& m) { m["k"] = 1e300; }, "k must be a whole number");
+  expectChangeRefused(knn, [](J& m) { m["knn"]["labels"][0] = 4294967297ULL; },
+                      "a nearest_neighbour label is out of range");
+  expectChangeRefused(knn, [](J& m) { m["objscan_model"] = 18446744073709551615ULL; },
+                      "objscan_model (the version) is out of range");
   const auto found = std::filesystem::path(OBJSCAN_SOURCE_DIR) /
                      "tests/discovery/fuzz_regressions/model_version_past_int.json";
   testing::expectInputError([&] { ObjectnessModel::load(found); }, found,
                             "objscan_model (the version) must be a whole number");
-  const std::string bayes = saved(ScoreKind::kNaiveBayes);
-  expectRefused(replaced(bayes, "\"var0\": [", "\"var0\": [-1, "), "one per measure");
+  expectChangeRefused(bayes, [](J& m) { m["bayes"]["var0"][0] = -1.0; },
+                      "variances must be positive");
+  expectChangeRefused(bayes, [](J& m) { m["bayes"]["var1"][2] = 1e-320; },
+                      "variances must be positive");
+  expectChangeRefused(bayes, [](J& m) { m["bayes"]["mean0"].push_back(0.0); }, "one per measure");
 }
 
 TEST(ObjectnessModel, TrainingRejectsTooFewExamplesOfAClass) {

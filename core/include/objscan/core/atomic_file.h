@@ -12,9 +12,10 @@ namespace objscan {
 /// removing the temporary file.
 void writeFileAtomically(const std::filesystem::path& path, std::string_view bytes);
 
-/// Removes, under `folder` (recursively), the temporary files writeFileAtomically leaves when its
-/// process is killed mid-write ("NAME.tmp-PID-N"), where process PID no longer runs. Returns how
-/// many it removed. For a folder this process holds (OutputFolderLock).
+/// Removes from `folder` (not its subfolders) the temporary files writeFileAtomically leaves when
+/// its process is killed mid-write: names exactly of its form, "NAME.tmp-PID-N", whose process PID
+/// no longer runs. Returns how many it removed. Only for a folder this process holds
+/// (OutputFolderLock): on a folder shared between hosts a live writer elsewhere looks dead here.
 std::size_t removeStaleTemporaries(const std::filesystem::path& folder);
 
 /// Whether a file can be created in `folder`: creates and removes a probe file there, since
