@@ -8,10 +8,10 @@
 
 #include <unistd.h>
 
+#include <open3d/io/TriangleMeshIO.h>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
-#include <open3d/io/TriangleMeshIO.h>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -73,7 +73,8 @@ objscan::TriangleMesh tiled(const objscan::TriangleMesh& scene, std::size_t vert
     for (const auto& p : scene.positions) out.positions.push_back(p + offset);
     out.normals.insert(out.normals.end(), scene.normals.begin(), scene.normals.end());
     out.colors.insert(out.colors.end(), scene.colors.begin(), scene.colors.end());
-    for (const auto& t : scene.triangles) out.triangles.push_back(t + Eigen::Vector3i::Constant(base));
+    for (const auto& t : scene.triangles)
+      out.triangles.push_back(t + Eigen::Vector3i::Constant(base));
   }
   return out;
 }

@@ -131,8 +131,9 @@ void make(const fs::path& out) {
   const std::string pose1 =
       "9.9939e-01 -3.4899e-02 0.0000e+00 1.2e-02\n3.4899e-02 9.9939e-01 0.0000e+00 -3.0e-03\n"
       "0.0000e+00 0.0000e+00 1.0000e+00 2.5e-02\n0.0000e+00 0.0000e+00 0.0000e+00 1.0000e+00\n";
-  std::ofstream(seven / "seed0") << "585 0 320\n0 585 240\n0 0 1\n=====\n" << pose0 << "=====\n"
-                                  << pose1 << "=====\n";
+  std::ofstream(seven / "seed0") << "585 0 320\n0 585 240\n0 0 1\n=====\n"
+                                 << pose0 << "=====\n"
+                                 << pose1 << "=====\n";
   std::ofstream(seven / "seed1") << "\n=====\n" << pose0 << "=====\n" << pose1;
   std::ofstream(seven / "seed2") << "\t583.0\t0\t320.0\n 0 583 240 \n0 0 1";
 

@@ -94,8 +94,8 @@ cv::Mat readImage(const fs::path& path, int flags,
     const int bits_per_sample = static_cast<unsigned char>(view[24]);
     const int colour_type = static_cast<unsigned char>(view[25]);
     const int samples = colour_type == 2 ? 3 : colour_type == 4 ? 2 : colour_type == 6 ? 4 : 1;
-    const double raw_bytes = static_cast<double>(declared->width) * declared->height * samples *
-                             bits_per_sample / 8.0;
+    const double raw_bytes =
+        static_cast<double>(declared->width) * declared->height * samples * bits_per_sample / 8.0;
     if (raw_bytes > 1032.0 * static_cast<double>(view.size()) + 65536.0) {
       throw InputError(path, "the PNG declares " + std::to_string(declared->width) + "x" +
                                  std::to_string(declared->height) +

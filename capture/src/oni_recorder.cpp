@@ -269,8 +269,8 @@ RecordSummary OniRecorder::publish(const RecordingFacts& facts, const std::strin
     written = inspectOniFile(temp_);
   } catch (const InputError& e) {
     // OpenNI2's recorder could not write everything (the disk filled from elsewhere).
-    throw OutputError(options_.out, std::string("the recording could not be completed (") +
-                                        e.what() + ")");
+    throw OutputError(options_.out,
+                      std::string("the recording could not be completed (") + e.what() + ")");
   }
   if (written.records_end > 0 && written.records_end < written.bytes) {
     // Drop the zero padding OpenNI2 leaves after the end record: it doubles the file's size.

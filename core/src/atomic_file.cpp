@@ -22,13 +22,17 @@ namespace {
 
 std::string errnoText() { return std::strerror(errno); }
 
+/// What marks a temporary file's name, before "<pid>-<random>" (temporarySibling makes such
+/// names, temporaryWriter reads them back).
+constexpr std::string_view kTemporaryMark = ".tmp-";
+
 /// A name next to `path` that no other writer picks: "<name>.tmp-<pid>-<random>", or
 /// ".objscan.tmp-<pid>-<random>" when that would pass the file system's 255-byte name limit (a
 /// file named near the limit can still be written).
 fs::path temporarySibling(const fs::path& path) {
   static thread_local std::mt19937_64 rng{std::random_device{}()};
-  const std::string suffix =
-      ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(rng() % 1000000000ULL);
+  const std::string suffix = std::string(kTemporaryMark) + std::to_string(::getpid()) + "-" +
+                             std::to_string(rng() % 1000000000ULL);
   constexpr std::size_t kMaxNameBytes = 255;
   if (path.filename().string().size() + suffix.size() > kMaxNameBytes) {
     return path.parent_path() / (".objscan" + suffix);
@@ -45,19 +49,20 @@ namespace {
 /// The writer's pid when `name` is exactly what temporarySibling makes ("NAME.tmp-PID-N" with N
 /// below 10^9, or ".objscan.tmp-PID-N"); 0 for any other name.
 long temporaryWriter(const std::string& name) {
-  const std::size_t at = name.rfind(".tmp-");
+  const std::size_t at = name.rfind(kTemporaryMark);
+  constexpr std::size_t kMark = kTemporaryMark.size();
   if (at == std::string::npos || at == 0) return 0;
   const auto digits = [&](std::size_t from, std::size_t to) {
     return to > from && std::all_of(name.begin() + static_cast<std::ptrdiff_t>(from),
-                                     name.begin() + static_cast<std::ptrdiff_t>(to),
-                                     [](char c) { return c >= '0' && c <= '9'; });
+                                    name.begin() + static_cast<std::ptrdiff_t>(to),
+                                    [](char c) { return c >= '0' && c <= '9'; });
   };
-  const std::size_t dash = name.find('-', at + 5);
-  if (dash == std::string::npos || !digits(at + 5, dash) || dash - at - 5 > 9 ||
+  const std::size_t dash = name.find('-', at + kMark);
+  if (dash == std::string::npos || !digits(at + kMark, dash) || dash - at - kMark > 9 ||
       !digits(dash + 1, name.size()) || name.size() - dash - 1 > 9) {
     return 0;
   }
-  return std::strtol(name.c_str() + at + 5, nullptr, 10);
+  return std::strtol(name.c_str() + at + kMark, nullptr, 10);
 }
 
 }  // namespace

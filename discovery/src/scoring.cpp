@@ -136,7 +136,8 @@ struct SvmDecision {
         k += gamma > 0.0 ? (v[j] - x[j]) * static_cast<double>(v[j] - x[j])
                          : static_cast<double>(v[j]) * x[j];
       }
-      const double term = alpha[static_cast<std::size_t>(i)] * (gamma > 0.0 ? std::exp(-gamma * k) : k);
+      const double term =
+          alpha[static_cast<std::size_t>(i)] * (gamma > 0.0 ? std::exp(-gamma * k) : k);
       sum += term;
       size += std::abs(term);
     }
@@ -490,8 +491,10 @@ namespace {
 /// A JSON integer that fits an int (nlohmann's get<int>() converts a float or a larger integer
 /// with undefined behaviour: fuzz_model found "objscan_model": 2e+92).
 int wholeNumber(const nlohmann::json& j, const char* what) {
-  if (!j.is_number_integer()) throw std::invalid_argument(std::string(what) + " must be a whole number");
-  const bool too_big = j.is_number_unsigned() && j.get<std::uint64_t>() > std::numeric_limits<int>::max();
+  if (!j.is_number_integer())
+    throw std::invalid_argument(std::string(what) + " must be a whole number");
+  const bool too_big =
+      j.is_number_unsigned() && j.get<std::uint64_t>() > std::numeric_limits<int>::max();
   const auto v = too_big ? std::int64_t{0} : j.get<std::int64_t>();
   if (too_big || v < std::numeric_limits<int>::min() || v > std::numeric_limits<int>::max()) {
     throw std::invalid_argument(std::string(what) + " is out of range");
@@ -512,20 +515,17 @@ double finiteNumber(const nlohmann::json& j, const char* what) {
   return v;
 }
 
-std::vector<double> finiteNumbers(const nlohmann::json& j, std::size_t n, const char* what) {
-  if (!j.is_array() || !std::all_of(j.begin(), j.end(), [](const auto& x) { return x.is_number(); })) {
-    throw std::invalid_argument(std::string(what) + " must be a list of numbers");
-  }
-  auto v = j.get<std::vector<double>>();
-  if (v.size() != n) {
+/// A list of `n` numbers, one per `per`, each as finiteNumber() takes it.
+std::vector<double> finiteNumbers(const nlohmann::json& j, std::size_t n, const char* what,
+                                  const char* per = "measure") {
+  if (!j.is_array()) throw std::invalid_argument(std::string(what) + " must be a list of numbers");
+  if (j.size() != n) {
     throw std::invalid_argument(std::string(what) + " must hold " + std::to_string(n) +
-                                " numbers, one per measure");
+                                " numbers, one per " + per);
   }
-  for (const double x : v) {
-    if (!(std::abs(x) <= kLargestModelNumber)) {
-      throw std::invalid_argument(std::string(what) + " is not finite or out of range");
-    }
-  }
+  std::vector<double> v;
+  v.reserve(n);
+  for (const auto& x : j) v.push_back(finiteNumber(x, what));
   return v;
 }
 
@@ -548,8 +548,7 @@ cv::Mat matrixFromJson(const nlohmann::json& j, int cols, const char* what) {
   for (std::size_t r = 0; r < j.size(); ++r) {
     const auto row = finiteNumbers(j[r], static_cast<std::size_t>(cols), what);
     for (int c = 0; c < cols; ++c) {
-      const double v = row[static_cast<std::size_t>(c)];
-      m.at<float>(static_cast<int>(r), c) = static_cast<float>(v);
+      m.at<float>(static_cast<int>(r), c) = static_cast<float>(row[static_cast<std::size_t>(c)]);
     }
   }
   return m;
@@ -575,9 +574,12 @@ void ObjectnessModel::save(const std::filesystem::path& path) const {
   j["cross_validated_ap"] = std::isfinite(m.cv_ap) ? m.cv_ap : -1.0;
   j["sign"] = m.sign;
   if (m.kind == ScoreKind::kNaiveBayes) {
-    j["bayes"] = {{"mean0", m.bayes.mean[0]},           {"mean1", m.bayes.mean[1]},
-                  {"var0", m.bayes.var[0]},             {"var1", m.bayes.var[1]},
-                  {"log_prior0", m.bayes.log_prior[0]}, {"log_prior1", m.bayes.log_prior[1]}};
+    j["bayes"] = {{"mean0", m.bayes.mean[0]},
+                  {"mean1", m.bayes.mean[1]},
+                  {"var0", m.bayes.var[0]},
+                  {"var1", m.bayes.var[1]},
+                  {"log_prior0", m.bayes.log_prior[0]},
+                  {"log_prior1", m.bayes.log_prior[1]}};
   } else if (m.kind == ScoreKind::kLinearSvm || m.kind == ScoreKind::kRbfSvm) {
     j["svm"] = {{"gamma", m.svm.gamma},
                 {"rho", m.svm.rho},
@@ -596,8 +598,9 @@ ObjectnessModel ObjectnessModel::load(const std::filesystem::path& path) {
   // Until 2026-11 models were OpenCV FileStorage YAML. OpenCV 4.6's YAML reader never returns on
   // some damaged files (fuzz_model found several), so objscan no longer reads YAML at all.
   if (text.rfind("%YAML", 0) == 0) {
-    throw bad("an objscan model in the old YAML form, which objscan no longer reads (OpenCV's "
-              "YAML reader can hang on a damaged file): train it again with `objscan train`");
+    throw bad(
+        "an objscan model in the old YAML form, which objscan no longer reads (OpenCV's "
+        "YAML reader can hang on a damaged file): train it again with `objscan train`");
   }
   nlohmann::json j;
   try {
@@ -615,8 +618,8 @@ ObjectnessModel ObjectnessModel::load(const std::filesystem::path& path) {
       throw bad("model file version " + std::to_string(version) +
                 " is newer than this objscan's (" + std::to_string(kModelFileVersion) + ")");
     }
-    if (version < kModelFileVersion) throw bad("model file version " + std::to_string(version) +
-                                               " is not one this objscan reads");
+    if (version < kModelFileVersion)
+      throw bad("model file version " + std::to_string(version) + " is not one this objscan reads");
     impl->kind = scoreKindFromString(j.at("kind").get<std::string>());
     impl->mask = {};
     for (const auto& node : j.at("measures")) {
@@ -669,7 +672,7 @@ ObjectnessModel ObjectnessModel::load(const std::filesystem::path& path) {
         d.vectors = matrixFromJson(s.at("support_vectors"), static_cast<int>(used),
                                    "the SVM's support_vectors");
         d.alpha = finiteNumbers(s.at("alpha"), static_cast<std::size_t>(d.vectors.rows),
-                                "the SVM's alpha (one per support vector)");
+                                "the SVM's alpha", "support vector");
         d.rho = finiteNumber(s.at("rho"), "the SVM's rho");
         d.gamma = impl->kind == ScoreKind::kRbfSvm ? finiteNumber(s.at("gamma"), "gamma") : 0.0;
         if (d.gamma < 0.0) throw bad("the SVM's gamma is negative");
@@ -678,10 +681,11 @@ ObjectnessModel ObjectnessModel::load(const std::filesystem::path& path) {
       case ScoreKind::kNearestNeighbour: {
         if (!j.contains("knn")) throw bad("a nearest_neighbour model without samples");
         const auto& n = j.at("knn");
-        impl->knn_samples =
-            matrixFromJson(n.at("samples"), static_cast<int>(used), "the nearest_neighbour samples");
+        impl->knn_samples = matrixFromJson(n.at("samples"), static_cast<int>(used),
+                                           "the nearest_neighbour samples");
         const auto& labels = n.at("labels");
-        if (!labels.is_array() || labels.size() != static_cast<std::size_t>(impl->knn_samples.rows)) {
+        if (!labels.is_array() ||
+            labels.size() != static_cast<std::size_t>(impl->knn_samples.rows)) {
           throw bad("the nearest_neighbour labels must be one per sample");
         }
         for (const auto& label : labels) {

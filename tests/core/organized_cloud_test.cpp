@@ -183,8 +183,9 @@ TEST(Pcd, BadFilesGetOneClearError) {
   // Declared counts the data cannot hold are refused before anything is allocated for them (the
   // Step L audit: 117 bytes of ascii PCD had the reader allocate 1.6 GB, 131 bytes of
   // binary_compressed 1.2 GB).
-  const std::string huge = "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\n"
-                           "WIDTH 100000000\nHEIGHT 1\nPOINTS 100000000\nDATA ";
+  const std::string huge =
+      "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\n"
+      "WIDTH 100000000\nHEIGHT 1\nPOINTS 100000000\nDATA ";
   expect("huge_ascii.pcd", huge + "ascii\n1 2 3\n", "cannot hold the 100000000 points");
   expect("huge_lzf.pcd",
          huge + "binary_compressed\n" + std::string("\x00\x00\x00\x00\x00\x8c\x86\x47", 8),

@@ -231,31 +231,46 @@ TEST(ObjectnessModel, DamagedModelFilesNameWhatIsWrong) {
     EXPECT_NO_THROW(ObjectnessModel::load(dir / "intact.json"));
   }
   using J = nlohmann::json;
-  expectChangeRefused(svm, [](J& m) { m["svm"]["alpha"].push_back(1.0); }, "one per support vector");
-  expectChangeRefused(svm, [](J& m) { m["svm"]["rho"] = nullptr; }, "rho must be a number");
-  expectChangeRefused(svm, [](J& m) { m["svm"]["rho"] = 1e31; }, "rho is not finite or out of range");
-  expectChangeRefused(svm, [](J& m) { m["svm"]["support_vectors"][0] = {1, 2}; },
-                      "must hold 6 numbers, one per measure");
-  expectChangeRefused(svm, [](J& m) { m.erase("svm"); }, "without its support vectors");
-  expectChangeRefused(knn, [](J& m) { m["knn"]["labels"][0] = 7; }, "labels are 0 or 1");
-  expectChangeRefused(knn, [](J& m) { m["knn"]["labels"].push_back(1); }, "one per sample");
-  expectChangeRefused(knn, [](J& m) { m["k"] = 100000; }, "k must be between");
+  expectChangeRefused(
+      svm, [](J& m) { m["svm"]["alpha"].push_back(1.0); }, "one per support vector");
+  expectChangeRefused(
+      svm, [](J& m) { m["svm"]["rho"] = nullptr; }, "rho must be a number");
+  expectChangeRefused(
+      svm, [](J& m) { m["svm"]["rho"] = 1e31; }, "rho is not finite or out of range");
+  expectChangeRefused(
+      svm,
+      [](J& m) {
+        m["svm"]["support_vectors"][0] = {1, 2};
+      },
+      "must hold 6 numbers, one per measure");
+  expectChangeRefused(
+      svm, [](J& m) { m.erase("svm"); }, "without its support vectors");
+  expectChangeRefused(
+      knn, [](J& m) { m["knn"]["labels"][0] = 7; }, "labels are 0 or 1");
+  expectChangeRefused(
+      knn, [](J& m) { m["knn"]["labels"].push_back(1); }, "one per sample");
+  expectChangeRefused(
+      knn, [](J& m) { m["k"] = 100000; }, "k must be between");
   // Numbers past an int where an int belongs (converting them was undefined behaviour; found by
   // fuzz_model: tests/discovery/fuzz_regressions/model_version_past_int.json).
-  expectChangeRefused(knn, [](J& m) { m["k"] = 1e300; }, "k must be a whole number");
-  expectChangeRefused(knn, [](J& m) { m["knn"]["labels"][0] = 4294967297ULL; },
-                      "a nearest_neighbour label is out of range");
-  expectChangeRefused(knn, [](J& m) { m["objscan_model"] = 18446744073709551615ULL; },
-                      "objscan_model (the version) is out of range");
+  expectChangeRefused(
+      knn, [](J& m) { m["k"] = 1e300; }, "k must be a whole number");
+  expectChangeRefused(
+      knn, [](J& m) { m["knn"]["labels"][0] = 4294967297ULL; },
+      "a nearest_neighbour label is out of range");
+  expectChangeRefused(
+      knn, [](J& m) { m["objscan_model"] = 18446744073709551615ULL; },
+      "objscan_model (the version) is out of range");
   const auto found = std::filesystem::path(OBJSCAN_SOURCE_DIR) /
                      "tests/discovery/fuzz_regressions/model_version_past_int.json";
   testing::expectInputError([&] { ObjectnessModel::load(found); }, found,
                             "objscan_model (the version) must be a whole number");
-  expectChangeRefused(bayes, [](J& m) { m["bayes"]["var0"][0] = -1.0; },
-                      "variances must be positive");
-  expectChangeRefused(bayes, [](J& m) { m["bayes"]["var1"][2] = 1e-320; },
-                      "variances must be positive");
-  expectChangeRefused(bayes, [](J& m) { m["bayes"]["mean0"].push_back(0.0); }, "one per measure");
+  expectChangeRefused(
+      bayes, [](J& m) { m["bayes"]["var0"][0] = -1.0; }, "variances must be positive");
+  expectChangeRefused(
+      bayes, [](J& m) { m["bayes"]["var1"][2] = 1e-320; }, "variances must be positive");
+  expectChangeRefused(
+      bayes, [](J& m) { m["bayes"]["mean0"].push_back(0.0); }, "one per measure");
 }
 
 TEST(ObjectnessModel, TrainingRejectsTooFewExamplesOfAClass) {
