@@ -585,19 +585,24 @@ TEST(ViewPage, DrawsSelectsAndLabelsInChromiumAndTrainUsesTheLabels) {
 
   // A click on the mesh where another hypothesis is drawn selects that one: a point of it is
   // found by projecting its vertices and checking with the page's own picking, then clicked for
-  // real.
+  // real. The point is a whole pixel, the page's element there is the canvas, and the picking
+  // gives the same hypothesis two pixels around it, so that the browser's rounding of the
+  // pointer's position cannot move the click onto a neighbour.
   const json point = page.evaluate(R"((function () {
     var v = state.view, m = v.mesh, box = v.renderer.domElement.getBoundingClientRect(), tries = 0;
+    function rankAt(x, y) { var hit = v.pick(x, y); return hit >= 0 ? m.ranks[hit] : -1; }
     for (var i = 0; i < m.vertices && tries < 300; i += 3) {
       var rank = m.ranks[i];
       if (rank === 0 || rank === state.selectedRank) continue;
       var p = new THREE.Vector3(m.positions[3 * i], m.positions[3 * i + 1], m.positions[3 * i + 2]);
       p.project(v.camera);
-      var x = box.left + (p.x + 1) / 2 * box.width, y = box.top + (1 - p.y) / 2 * box.height;
-      if (p.z > 1 || x < box.left + 2 || y < box.top + 2 || x > box.right - 2 || y > box.bottom - 2) continue;
+      var x = Math.round(box.left + (p.x + 1) / 2 * box.width);
+      var y = Math.round(box.top + (1 - p.y) / 2 * box.height);
+      if (p.z > 1 || x < box.left + 4 || y < box.top + 4 || x > box.right - 4 || y > box.bottom - 4) continue;
+      if (document.elementFromPoint(x, y) !== v.renderer.domElement) continue;
       ++tries;
-      var hit = v.pick(x, y);
-      if (hit >= 0 && m.ranks[hit] === rank) return [x, y, rank];
+      var around = [[0, 0], [-2, 0], [2, 0], [0, -2], [0, 2], [-2, -2], [2, 2], [-2, 2], [2, -2]];
+      if (around.every(function (d) { return rankAt(x + d[0], y + d[1]) === rank; })) return [x, y, rank];
     }
     return null;
   })())");
