@@ -34,7 +34,17 @@ struct ChildRun {
 ChildRun measured(std::vector<std::string> argv) {
   argv.insert(argv.begin(), OBJSCAN_PEAK_MEMORY);
   std::string command;
-  for (const std::string& a : argv) command.append("'").append(a).append("' ");
+  for (const std::string& a : argv) {  // each in single quotes; a quote in it as '\''
+    command.push_back('\'');
+    for (const char c : a) {
+      if (c == '\'') {
+        command.append("'\\''");
+      } else {
+        command.push_back(c);
+      }
+    }
+    command.append("' ");
+  }
   command.append("2>/dev/null");
   FILE* out = popen(command.c_str(), "r");
   if (out == nullptr) throw std::runtime_error("cannot run " + argv[0]);
