@@ -42,10 +42,6 @@ fs::path temporarySibling(const fs::path& path) {
   return tmp;
 }
 
-}  // namespace
-
-namespace {
-
 /// The writer's pid when `name` is exactly what temporarySibling makes ("NAME.tmp-PID-N" with N
 /// below 10^9, or ".objscan.tmp-PID-N"); 0 for any other name.
 long temporaryWriter(const std::string& name) {
@@ -73,7 +69,9 @@ std::size_t removeStaleTemporaries(const fs::path& folder) {
   for (auto it = fs::directory_iterator(folder, ec); !ec && it != fs::directory_iterator();
        it.increment(ec)) {
     const long pid = temporaryWriter(it->path().filename().string());
-    if (pid <= 0 || pid == ::getpid() || !it->is_regular_file(ec) || it->is_symlink(ec)) continue;
+    if (pid <= 0 || pid == ::getpid() || it->symlink_status(ec).type() != fs::file_type::regular) {
+      continue;
+    }
     if (::kill(static_cast<pid_t>(pid), 0) == 0 || errno != ESRCH) continue;  // still running
     std::error_code remove_ec;
     removed += fs::remove(it->path(), remove_ec) ? 1 : 0;
@@ -155,9 +153,17 @@ std::string readWholeFile(const fs::path& path) {
 }
 
 int probeWritableFolder(const std::filesystem::path& folder) {
-  const std::filesystem::path probe =
-      folder / (".objscan-write-probe-" + std::to_string(::getpid()));
-  const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  // An unnamed file first: a process killed here leaves nothing behind.
+  int fd = ::open(folder.c_str(), O_WRONLY | O_TMPFILE | O_CLOEXEC, 0600);
+  if (fd >= 0) {
+    ::close(fd);
+    return 0;
+  }
+  if (errno != EOPNOTSUPP && errno != EISDIR) return errno;
+  // The file system has no unnamed files: a named one, under a temporary name of
+  // temporarySibling's form, which removeStaleTemporaries clears if this process dies here.
+  const fs::path probe = temporarySibling(folder / ".objscan-write-probe");
+  fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
   if (fd < 0) return errno;
   ::close(fd);
   ::unlink(probe.c_str());

@@ -18,9 +18,10 @@ void writeFileAtomically(const std::filesystem::path& path, std::string_view byt
 /// (OutputFolderLock): on a folder shared between hosts a live writer elsewhere looks dead here.
 std::size_t removeStaleTemporaries(const std::filesystem::path& folder);
 
-/// Whether a file can be created in `folder`: creates and removes a probe file there, since
-/// permissions alone do not say it (root, read-only mounts, virtual file systems). Returns 0, or
-/// the errno of the failed creation.
+/// Whether a file can be created in `folder`: creates a probe file there (unnamed where the file
+/// system allows, else named as writeFileAtomically's temporaries and removed), since permissions
+/// alone do not say it (root, read-only mounts, virtual file systems). Returns 0, or the errno of
+/// the failed creation.
 int probeWritableFolder(const std::filesystem::path& folder);
 
 /// Reads a whole regular file into memory. Throws InputError when the path is missing, is a
