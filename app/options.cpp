@@ -1,12 +1,15 @@
 #include "options.h"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <iterator>
 #include <memory>
+#include <set>
 #include <string>
 
 #include "objscan/core/error.h"
@@ -82,6 +85,34 @@ class SettingsFile : public CLI::Config {
   const CLI::App* app_;
 };
 
+/// Options whose values name files or folders (sources among them).
+bool namesPaths(const std::string& option) {
+  static const std::set<std::string> kPathOptions = {
+      "source", "meshes", "scenes", "dir", "out",        "record",
+      "catalog", "model", "poses", "intrinsics", "ground-truth", "object-dir"};
+  return kPathOptions.contains(option);
+}
+
+/// A file or folder given relative to the working directory, made absolute, so that
+/// `--config OUT/settings.json` reads the same files from any directory. Sources that are not
+/// paths stay as they are: synth:<seed>, live[:uri], --poses groundtruth; virtual:<source> has
+/// its source made absolute.
+std::string absolutePath(const std::string& value) {
+  const auto starts = [&](std::string_view prefix) { return value.rfind(prefix, 0) == 0; };
+  if (value.empty() || value == "live" || value == "groundtruth" || starts("live:") ||
+      starts("synth:")) {
+    return value;
+  }
+  if (starts("virtual:")) {
+    const std::size_t begin = std::string_view("virtual:").size();
+    const std::size_t query = std::min(value.find('?', begin), value.size());
+    return "virtual:" + absolutePath(value.substr(begin, query - begin)) + value.substr(query);
+  }
+  std::error_code ec;
+  const std::filesystem::path absolute = std::filesystem::absolute(value, ec);
+  return ec ? value : absolute.lexically_normal().string();
+}
+
 }  // namespace
 
 void addConfigOption(CLI::App& app) {
@@ -107,6 +138,9 @@ report::Settings commandSettings(const CLI::App& sub) {
       o.values = {opt->count() > 0 ? "true" : "false"};
     } else if (opt->count() > 0) {
       o.values = opt->results();
+      if (namesPaths(o.name)) {
+        for (std::string& value : o.values) value = absolutePath(value);
+      }
     } else if (!opt->get_default_str().empty()) {
       o.values = {opt->get_default_str()};
     }

@@ -84,8 +84,10 @@ NormalEquations accumulate(const DepthLevel& frame, const ModelMaps& model, cons
   const int width = (frame.depth_m.cols + sampled - 1) / sampled;
   const int height = (frame.depth_m.rows + sampled - 1) / sampled;
   assert(frame.vertices_C.size() == static_cast<std::size_t>(width) * height);
-  return tbb::parallel_reduce(
-      tbb::blocked_range<int>(0, (height + stride - 1) / stride), NormalEquations(),
+  // Deterministic: the rows are split and the partial sums joined the same way on every run, so
+  // the floating-point sums, and with them the trajectory, do not depend on the thread schedule.
+  return tbb::parallel_deterministic_reduce(
+      tbb::blocked_range<int>(0, (height + stride - 1) / stride, 4), NormalEquations(),
       [&](const tbb::blocked_range<int>& rows, NormalEquations sum) {
         // Upper triangle of J^T W J (21 values) and J^T W r (6), single precision per lane
         // within a row, double across rows.

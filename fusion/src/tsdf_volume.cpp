@@ -167,12 +167,16 @@ std::size_t TsdfVolume::integrate(const cv::Mat& depth_m, const cv::Mat& color_r
         }
       });
   // Two threads may have seen the same block: merge first, then allocate and collect each once
-  // (a deque keeps earlier blocks in place while new ones are appended).
+  // (a deque keeps earlier blocks in place while new ones are appended). New blocks are appended
+  // in key order, not in the order the threads happened to find them: the block order is the
+  // order of the extracted mesh's vertices, which must not depend on the thread schedule.
   KeySet merged;
   for (const KeySet& keys : local_keys) merged.insert(keys.begin(), keys.end());
+  std::vector<std::uint64_t> sorted_keys(merged.begin(), merged.end());
+  std::sort(sorted_keys.begin(), sorted_keys.end());
   std::vector<VoxelBlock*> touched;
-  touched.reserve(merged.size());
-  for (const std::uint64_t key : merged) {
+  touched.reserve(sorted_keys.size());
+  for (const std::uint64_t key : sorted_keys) {
     auto [it, inserted] =
         volume.map.try_emplace(key, static_cast<std::int32_t>(volume.blocks.size()));
     if (inserted) {

@@ -338,6 +338,55 @@ TEST_F(ScanCli, HypothesesAreExactlyWhatDiscoverFindsOnTheWrittenMesh) {
             readWholeFile(again / "objects" / "rank_001.ply"));
 }
 
+TEST_F(ScanCli, ConfigRepeatsARunFromAnotherDirectoryWithTheSameMeshAndCatalogScene) {
+  // settings.json kept its paths as typed, so --config failed from another directory; and the
+  // fused mesh's vertex order followed the thread schedule, so the catalog (which keys a scene by
+  // its content) took the repeat for a new desk and recurrence matched the scan against itself.
+  // A run made with relative paths, repeated from another directory: the same mesh to the byte,
+  // the same catalog scene, the same hypotheses.
+  ASSERT_EQ(scan_.exit_code, 0) << scan_.err;
+  fs::create_directories(*dir_ / "elsewhere");
+  testing::ProcessOptions in_dir;
+  in_dir.cwd = dir_->path();
+  const ProcessResult first =
+      testing::runProcess({OBJSCAN_EXE, "scan", scene_.filename().string(), "--out",
+                           "repeat_first", "--catalog", "repeat.sqlite", "--frames", "15"},
+                          in_dir);
+  ASSERT_EQ(first.exit_code, 0) << first.err;
+  testing::ProcessOptions elsewhere;
+  elsewhere.cwd = *dir_ / "elsewhere";
+  const ProcessResult again = testing::runProcess(
+      {OBJSCAN_EXE, "scan", "--config", "../repeat_first/settings.json", "--out", "again"},
+      elsewhere);
+  ASSERT_EQ(again.exit_code, 0) << again.err;
+  const fs::path a = *dir_ / "repeat_first", b = *dir_ / "elsewhere/again";
+  EXPECT_TRUE(readWholeFile(a / "mesh.ply") == readWholeFile(b / "mesh.ply"))
+      << "the same frames fused twice give another mesh.ply";
+  const report::Settings settings = report::readSettings(a / "settings.json");
+  for (const report::OptionSetting& o : settings.options) {
+    if (o.name == "source" || o.name == "catalog" || o.name == "out") {
+      ASSERT_EQ(o.values.size(), 1u) << o.name;
+      EXPECT_TRUE(fs::path(o.values[0]).is_absolute()) << o.name << ": " << o.values[0];
+    }
+  }
+  const report::Hypotheses h1 = report::readHypotheses(a / "hypotheses.json");
+  const report::Hypotheses h2 = report::readHypotheses(b / "hypotheses.json");
+  ASSERT_TRUE(h1.catalog && h2.catalog);
+  EXPECT_EQ(h1.catalog->path, (*dir_ / "repeat.sqlite").string());
+  EXPECT_EQ(h2.catalog->path, h1.catalog->path);
+  EXPECT_EQ(h2.catalog->scenes, 1u) << "the repeat was added as a second scene";
+  ASSERT_EQ(h1.scenes.size(), 1u);
+  ASSERT_EQ(h2.scenes.size(), 1u);
+  EXPECT_EQ(h2.scenes[0].catalog_scene, h1.scenes[0].catalog_scene);
+  ASSERT_EQ(h1.hypotheses.size(), h2.hypotheses.size());
+  ASSERT_FALSE(h1.hypotheses.empty());
+  for (std::size_t i = 0; i < h1.hypotheses.size(); ++i) {
+    const report::HypothesisRecord &x = h1.hypotheses[i], &y = h2.hypotheses[i];
+    EXPECT_EQ(x.vertices, y.vertices) << "rank " << i + 1;
+    EXPECT_EQ(x.score, y.score) << "rank " << i + 1;
+  }
+}
+
 TEST_F(ScanCli, SettingsJsonSaysHowTheRunWasMadeAndConfigRepeatsIt) {
   ASSERT_EQ(scan_.exit_code, 0) << scan_.err;
   const report::Settings settings = report::readSettings(out_ / "settings.json");
