@@ -218,17 +218,17 @@ void make(const fs::path& out) {
   fs::create_directories(catalog_dir);
   {
     discovery::Catalog catalog(catalog_dir / "seed.sqlite");
-    discovery::CatalogScene scene;
-    scene.name = "scene.ply";
-    scene.content_hash = "0123456789abcdef";
-    scene.vertex_count = 4;
-    scene.settings = "settings";
+    discovery::CatalogScene catalog_scene;
+    catalog_scene.name = "scene.ply";
+    catalog_scene.content_hash = "0123456789abcdef";
+    catalog_scene.vertex_count = 4;
+    catalog_scene.settings = "settings";
     discovery::CatalogSegment segment;
     segment.scale = 1.0f;
     segment.extents = {0.1f, 0.05f, 0.02f};
     segment.vertices = {0, 1, 2};
     segment.label = 1;
-    const std::int64_t id = catalog.addScene(scene, {segment, segment});
+    const std::int64_t id = catalog.addScene(catalog_scene, {segment, segment});
     const auto rows = catalog.segments(id, false);
     const discovery::LabelEvent e = catalog.setLabel(rows.at(1).id, 0, "seed");
     catalog.undoLabel(e.id, "seed");

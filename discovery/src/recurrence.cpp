@@ -87,9 +87,9 @@ struct RecurrenceIndex::Impl {
       for (int d = 0; d < 3; ++d) {
         if (!(std::abs(static_cast<double>(e[d]) - q_[d]) <= window_ * q_[d])) return true;
       }
-      const double* z = &index_.z[i * kMeasures];
+      const double* z_i = &index_.z[i * kMeasures];
       double d2 = 0.0;
-      for (std::size_t j = 0; j < kMeasures; ++j) d2 += (z_q_[j] - z[j]) * (z_q_[j] - z[j]);
+      for (std::size_t j = 0; j < kMeasures; ++j) d2 += (z_q_[j] - z_i[j]) * (z_q_[j] - z_i[j]);
       if (heap_.size() < k_) {
         heap_.push_back(d2);
         std::push_heap(heap_.begin(), heap_.end());
