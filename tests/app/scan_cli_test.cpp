@@ -559,6 +559,20 @@ TEST(ScanCliLive, CtrlCEndsLiveCaptureAndTheScanGoesOn) {
 TEST(ScanCliLive, NoSensorAttachedIsExitCodeThree) {
   TempDir dir;
   expectOneErrorLine(objscan({"scan", "--out", (dir / "out").string()}), 3, "no sensor found");
+  // Nothing is made before the source is open.
+  EXPECT_FALSE(fs::exists(dir / "out"));
+  // `live` is the sensor, also where a folder of that name is in the working directory (which
+  // ./live names).
+  fs::create_directories(dir / "live");
+  testing::ProcessOptions in_dir;
+  in_dir.cwd = dir.path();
+  expectOneErrorLine(testing::runProcess({OBJSCAN_EXE, "scan", "--out", "out"}, in_dir), 3,
+                     "no sensor found");
+  expectOneErrorLine(testing::runProcess({OBJSCAN_EXE, "scan", "live", "--out", "out"}, in_dir), 3,
+                     "no sensor found");
+  EXPECT_FALSE(fs::exists(dir / "out"));
+  expectOneErrorLine(testing::runProcess({OBJSCAN_EXE, "scan", "./live", "--out", "out"}, in_dir),
+                     2, "live: is neither a TUM RGB-D folder");
   // --record belongs to live sources only.
   expectOneErrorLine(objscan({"scan", "synth:3,frames=5", "--out", (dir / "out").string(),
                               "--record", (dir / "x.oni").string()}),
