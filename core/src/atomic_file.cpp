@@ -126,7 +126,7 @@ void writeFileAtomically(const fs::path& path, std::string_view bytes) {
   }
 }
 
-std::string readWholeFile(const fs::path& path) {
+std::string readWholeFile(const fs::path& path, std::uintmax_t max_bytes) {
   std::error_code ec;
   const fs::file_status status = fs::status(path, ec);
   if (status.type() == fs::file_type::not_found) {
@@ -136,7 +136,13 @@ std::string readWholeFile(const fs::path& path) {
   if (status.type() == fs::file_type::directory) {
     throw InputError(path, "is a directory, not a file");
   }
-  if (status.type() != fs::file_type::regular) throw InputError(path, "is not a regular file");
+  if (status.type() != fs::file_type::regular) {
+    throw InputError(path, "is not a regular file (a device, a FIFO or a socket)");
+  }
+  if (const std::uintmax_t bytes = fs::file_size(path, ec); !ec && bytes > max_bytes) {
+    throw InputError(path, "is " + std::to_string(bytes) + " bytes, more than the " +
+                               std::to_string(max_bytes) + " such a file can be");
+  }
 
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, "cannot open for reading: " + errnoText());
@@ -144,6 +150,10 @@ std::string readWholeFile(const fs::path& path) {
   in.seekg(0, std::ios::end);
   const std::streamoff size = in.tellg();
   if (size < 0) throw InputError(path, "cannot determine the file size");
+  if (static_cast<std::uintmax_t>(size) > max_bytes) {  // it grew since it was looked at
+    throw InputError(path, "is " + std::to_string(size) + " bytes, more than the " +
+                               std::to_string(max_bytes) + " such a file can be");
+  }
   bytes.resize(static_cast<size_t>(size));
   in.seekg(0, std::ios::beg);
   in.read(bytes.data(), size);

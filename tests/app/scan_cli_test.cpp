@@ -5,8 +5,10 @@
 
 #include <gtest/gtest.h>
 
-#include <csignal>
+#include <sys/stat.h>
+#include <unistd.h>
 
+#include <csignal>
 #include <filesystem>
 #include <map>
 #include <set>
@@ -17,6 +19,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "background_process.h"
 #include "cli_expect.h"
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/ply_io.h"
@@ -403,6 +406,40 @@ TEST_F(ScanCli, SettingsJsonSaysHowTheRunWasMadeAndConfigRepeatsIt) {
   expectOneErrorLine(
       objscan({"scan", "--config", foreign.string(), "--out", again.string()}), 2,
       foreign.string() + ": \"options.frobnicate\" is not an option of objscan scan");
+}
+
+/// objscan with `args`, guarded so that a regression fails instead of hanging or exhausting the
+/// machine: killed after 10 s (exit -1; a FIFO opened for reading waits for a writer forever)
+/// and held to 3 GB of address space (/dev/zero read to its end takes all memory).
+ProcessResult guardedObjscan(const std::vector<std::string>& args) {
+  std::string command = "ulimit -v 3000000 && exec '" + std::string(OBJSCAN_EXE) + "'";
+  for (const std::string& a : args) command += " '" + a + "'";  // test paths hold no quote
+  testing::BackgroundProcess run({"/bin/sh", "-c", command});
+  ProcessResult r;
+  r.exit_code = run.wait(10);
+  r.out = run.out();
+  r.err = run.err();
+  return r;
+}
+
+TEST(ScanCliErrors, SettingsThatAreNoRegularFileOrTooLargeAreRefusedBeforeAnyRead) {
+  TempDir dir;
+  const fs::path fifo = dir / "settings.fifo";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  // 2 GB that take no disk: a sparse file.
+  const fs::path sparse = dir / "sparse.json";
+  testing::writeBytes(sparse, "");
+  ASSERT_EQ(::truncate(sparse.c_str(), std::int64_t{2} << 30), 0);
+  for (const fs::path& file : {fs::path("/dev/zero"), fs::path("/dev/urandom"), fifo, sparse}) {
+    const fs::path out = dir / "out";
+    const ProcessResult r =
+        guardedObjscan({"scan", "--config", file.string(), "--out", out.string()});
+    expectOneErrorLine(r, 2, file.string() + ": ");
+    EXPECT_NE(r.err.find(file == sparse ? "more than the 1048576" : "not a regular file"),
+              std::string::npos)
+        << r.err;
+    EXPECT_FALSE(fs::exists(out)) << file;
+  }
 }
 
 TEST(ScanCliErrors, AnOutputFolderThatCannotBeWrittenFailsBeforeFusing) {
