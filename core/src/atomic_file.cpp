@@ -26,22 +26,6 @@ std::string errnoText() { return std::strerror(errno); }
 /// names, temporaryWriter reads them back).
 constexpr std::string_view kTemporaryMark = ".tmp-";
 
-/// A name next to `path` that no other writer picks: "<name>.tmp-<pid>-<random>", or
-/// ".objscan.tmp-<pid>-<random>" when that would pass the file system's 255-byte name limit (a
-/// file named near the limit can still be written).
-fs::path temporarySibling(const fs::path& path) {
-  static thread_local std::mt19937_64 rng{std::random_device{}()};
-  const std::string suffix = std::string(kTemporaryMark) + std::to_string(::getpid()) + "-" +
-                             std::to_string(rng() % 1000000000ULL);
-  constexpr std::size_t kMaxNameBytes = 255;
-  if (path.filename().string().size() + suffix.size() > kMaxNameBytes) {
-    return path.parent_path() / (".objscan" + suffix);
-  }
-  fs::path tmp = path;
-  tmp += suffix;
-  return tmp;
-}
-
 /// The writer's pid when `name` is exactly what temporarySibling makes ("NAME.tmp-PID-N" with N
 /// below 10^9, or ".objscan.tmp-PID-N"); 0 for any other name.
 long temporaryWriter(const std::string& name) {
@@ -62,6 +46,21 @@ long temporaryWriter(const std::string& name) {
 }
 
 }  // namespace
+
+/// "<name>.tmp-<pid>-<random>", or ".objscan.tmp-<pid>-<random>" when that would pass the file
+/// system's 255-byte name limit (a file named near the limit can still be written).
+fs::path temporarySibling(const fs::path& path) {
+  static thread_local std::mt19937_64 rng{std::random_device{}()};
+  const std::string suffix = std::string(kTemporaryMark) + std::to_string(::getpid()) + "-" +
+                             std::to_string(rng() % 1000000000ULL);
+  constexpr std::size_t kMaxNameBytes = 255;
+  if (path.filename().string().size() + suffix.size() > kMaxNameBytes) {
+    return path.parent_path() / (".objscan" + suffix);
+  }
+  fs::path tmp = path;
+  tmp += suffix;
+  return tmp;
+}
 
 std::size_t removeStaleTemporaries(const fs::path& folder) {
   std::size_t removed = 0;

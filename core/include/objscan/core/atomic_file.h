@@ -27,6 +27,11 @@ std::size_t removeStaleTemporaries(const std::filesystem::path& folder);
 /// the failed creation.
 int probeWritableFolder(const std::filesystem::path& folder);
 
+/// A name next to `path` that no other writer picks, of the form removeStaleTemporaries clears
+/// ("NAME.tmp-PID-N"): for a file that is made complete under it and then linked or renamed into
+/// place.
+std::filesystem::path temporarySibling(const std::filesystem::path& path);
+
 /// Reads a whole regular file into memory. Throws InputError when the path is missing, is a
 /// directory or another non-regular file (a device such as /dev/zero, a FIFO, a socket: never
 /// opened, so one cannot block or stream without end), is larger than `max_bytes` (the size is

@@ -97,13 +97,17 @@ class Catalog {
   /// upgraded when opened (its labels kept, by "objscan (schema 1)").
   static constexpr int kSchemaVersion = 2;
 
-  /// Opens the catalog at `path`, or creates it (and its tables) when the file does not exist or
-  /// is empty (0 bytes: SQLite's own reading of an empty file). The folder must exist. A catalog
-  /// of schema version 1 is upgraded to 2 in one transaction (all or nothing).
-  /// Throws objscan::InputError naming the file when it is a folder, not an SQLite database or
-  /// damaged, an SQLite database without objscan's tables, or a catalog of a newer schema
-  /// version; objscan::OutputError when it cannot be created (e.g. the folder is missing) or a
-  /// version-1 file cannot be upgraded (read-only, locked too long, disk full).
+  /// Opens the catalog at `path`, or creates it (and its tables) when nothing is there: made whole
+  /// under a temporary name and linked into place, so that no other process (and no later run,
+  /// after a kill) ever finds a half-made catalog. The folder must exist. The whole file is checked
+  /// (SQLite's PRAGMA quick_check) before anything is written or read. A catalog of schema
+  /// version 1 is upgraded to 2 in one transaction (all or nothing).
+  /// Throws objscan::InputError naming the file, which is then left as it was, when it is a
+  /// folder, not a regular file (a device such as /dev/null, a FIFO), empty (0 bytes: not a
+  /// catalog, and not made one), not an SQLite database, damaged (quick_check fails), an SQLite
+  /// database without objscan's tables, or a catalog of a newer schema version;
+  /// objscan::OutputError when it cannot be created (e.g. the folder is missing) or a version-1
+  /// file cannot be upgraded (read-only, locked too long, disk full).
   explicit Catalog(const std::filesystem::path& path);
   ~Catalog();
   /// A moved-from catalog may only be assigned to or destroyed.
