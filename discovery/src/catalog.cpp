@@ -133,7 +133,9 @@ void requireLabel(int label, std::int64_t segment_id) {
 }
 
 void requireLabeller(const std::string& by) {
-  if (by.empty()) throw std::invalid_argument("a label needs the name of who set it (empty)");
+  if (const std::string problem = labellerNameProblem(by); !problem.empty()) {
+    throw std::invalid_argument("a label needs the name of who set it: " + problem);
+  }
 }
 
 enum class Access { kRead, kWrite };
@@ -330,7 +332,79 @@ std::string encodeVertices(const std::vector<std::int32_t>& vertices) {
   return out;
 }
 
+/// Characters a name may hold that show nothing: spaces of every width, joiners, fillers.
+bool invisible(std::uint32_t c) {
+  return c == 0x20 || c == 0xa0 || c == 0xad || c == 0x34f || c == 0x115f || c == 0x1160 ||
+         c == 0x1680 || c == 0x17b4 || c == 0x17b5 || c == 0x180e || (c >= 0x2000 && c <= 0x200d) ||
+         c == 0x202f || c == 0x205f || (c >= 0x2060 && c <= 0x2064) || c == 0x3000 || c == 0x3164 ||
+         c == 0xffa0 || (c >= 0xfe00 && c <= 0xfe0f);
+}
+
+/// Characters a name must not hold: controls (C0, DEL, C1; ESC starts terminal escapes), line and
+/// paragraph separators, text-direction marks, embeddings, overrides and isolates, the byte order
+/// mark, interlinear annotation and tag characters.
+const char* refusedKind(std::uint32_t c) {
+  if (c < 0x20 || (c >= 0x7f && c <= 0x9f)) return "a control character";
+  if (c == 0x2028 || c == 0x2029) return "a line or paragraph separator";
+  if (c == 0x061c || c == 0x200e || c == 0x200f || (c >= 0x202a && c <= 0x202e) ||
+      (c >= 0x2066 && c <= 0x2069)) {
+    return "a text-direction character";
+  }
+  if (c == 0xfeff) return "a byte order mark";
+  if ((c >= 0xfff9 && c <= 0xfffb) || (c >= 0xe0000 && c <= 0xe007f)) {
+    return "an invisible format character";
+  }
+  return nullptr;
+}
+
 }  // namespace
+
+std::string labellerNameProblem(std::string_view name) {
+  constexpr std::size_t kMaxCharacters = 64;
+  const std::string rule =
+      " (a name is 1 to 64 characters, at least one visible, without control, line-separator, "
+      "text-direction or byte-order-mark characters)";
+  if (name.empty()) return "the name is empty" + rule;
+  std::size_t characters = 0;
+  bool visible = false;
+  for (std::size_t i = 0; i < name.size();) {
+    // UTF-8, strictly: no overlong form, no surrogate, nothing past U+10FFFF.
+    const auto byte = [&](std::size_t k) { return static_cast<unsigned char>(name[k]); };
+    const unsigned char lead = byte(i);
+    const std::size_t length = lead < 0x80   ? 1
+                               : lead < 0xc2 ? 0
+                               : lead < 0xe0 ? 2
+                               : lead < 0xf0 ? 3
+                               : lead < 0xf5 ? 4
+                                             : 0;
+    std::uint32_t c = length == 1 ? lead : lead & (0x7fu >> length);
+    bool valid = length > 0 && i + length <= name.size();
+    for (std::size_t k = 1; valid && k < length; ++k) {
+      valid = (byte(i + k) & 0xc0) == 0x80;
+      c = (c << 6) | (byte(i + k) & 0x3fu);
+    }
+    valid = valid && !(length == 3 && (c < 0x800 || (c >= 0xd800 && c <= 0xdfff))) &&
+            !(length == 4 && (c < 0x10000 || c > 0x10ffff));
+    ++characters;
+    char at[96];
+    if (!valid) {
+      std::snprintf(at, sizeof at, "byte %zu is not UTF-8", i + 1);
+      return at + rule;
+    }
+    if (const char* kind = refusedKind(c)) {
+      std::snprintf(at, sizeof at, "character %zu is U+%04X, %s", characters,
+                    static_cast<unsigned>(c), kind);
+      return at + rule;
+    }
+    visible |= !invisible(c);
+    i += length;
+  }
+  if (characters > kMaxCharacters) {
+    return "the name has " + std::to_string(characters) + " characters" + rule;
+  }
+  if (!visible) return "the name shows nothing (only spaces or invisible characters)" + rule;
+  return {};
+}
 
 struct Catalog::Impl {
   explicit Impl(const fs::path& file) {
@@ -863,6 +937,7 @@ std::int64_t Catalog::addScene(const CatalogScene& scene,
     }
     if (g.label) {
       requireLabel(*g.label, segment_id);
+      if (!g.labelled_by.empty()) requireLabeller(g.labelled_by);
       impl_->applyLabel(segment_id, scene_id, g.label,
                         g.labelled_by.empty() ? "objscan" : g.labelled_by, now);
     }

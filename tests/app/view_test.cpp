@@ -266,7 +266,11 @@ TEST(ViewServer, HostileAndMalformedRequestsGet4xxAndTheCatalogStaysWhole) {
                  R"({"segment": )" + std::to_string(id) + R"(, "label": "object", "by": "a\u0007b"})")
                 .status,
             400);
-  for (const char* by : {R"("   ")", R"("a\u202eb")", R"("a\u0085b")", R"("a\u2028b")"}) {
+  // Names a terminal would obey or that show nothing: escapes, text-direction characters,
+  // invisible spaces only, a leading byte order mark, an empty one (it does not fall back).
+  for (const char* by :
+       {R"("   ")", R"("a\u202eb")", R"("a\u0085b")", R"("a\u2028b")", R"("a\u001b[2Jb")",
+        R"("\u200f")", R"("\u200b\u00a0\u3000")", R"("\ufeffana")", R"("")", R"(42)"}) {
     EXPECT_EQ(post(port, "/api/label",
                    R"({"segment": )" + std::to_string(id) + R"(, "label": "object", "by": )" + by +
                        "}")
@@ -461,6 +465,28 @@ TEST(ViewServer, SeveralScenesOfOneDiscoverRunAreEachShownAndLabelledApart) {
   EXPECT_EQ(jsonOf(get(port, "/api/scenes/0/labels"))["progress"]["labelled"], 0);
   view->signal(SIGINT);
   EXPECT_EQ(view->wait(10), 0);
+}
+
+TEST(ViewServer, LabellerNamesThatAreNotNamesAreOneErrorLineAndNeverPrinted) {
+  TempDir dir;  // the name is checked before the folder is read: no results needed
+  const auto refused = [&](const std::vector<std::string>& env, const std::string& labeller,
+                           const std::string& from) {
+    std::vector<std::string> args = {OBJSCAN_EXE, "view", dir.path().string(), "--serve", "0"};
+    if (!labeller.empty()) args.insert(args.end(), {"--labeller", labeller});
+    testing::ProcessOptions options;
+    options.env = env;
+    const ProcessResult r = testing::runProcess(args, options);
+    testing::expectOneErrorLine(r, 2, from + ": not a labeller's name");
+    EXPECT_EQ(r.err.find('\x1b'), std::string::npos) << "no escape reaches the terminal";
+    EXPECT_EQ(r.err.find("\u202e"), std::string::npos);
+  };
+  refused({}, "a\x1b[31mred", "--labeller");
+  refused({}, "\u202eevil", "--labeller");
+  refused({}, "\u200b\u200b", "--labeller");
+  refused({}, "\ufeffana", "--labeller");
+  refused({"OBJSCAN_LABELLER=ana\x1b]0;title\x07"}, "", "$OBJSCAN_LABELLER");
+  refused({"OBJSCAN_LABELLER=\u2066x\u2069"}, "", "$OBJSCAN_LABELLER");
+  refused({"OBJSCAN_LABELLER=\u00a0\u3000"}, "", "$OBJSCAN_LABELLER");
 }
 
 TEST(ViewServer, FoldersWithoutResultsOrWithDamagedFilesSayWhat) {

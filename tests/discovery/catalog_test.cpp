@@ -677,6 +677,16 @@ TEST(CatalogLabels, BadLabelsUnknownIdsAndNoNameAreRefusedLeavingTheFileAlone) {
   EXPECT_THROW(catalog.setLabel(ids[1], 1, ""), std::invalid_argument);
   EXPECT_THROW(catalog.undoLabel(e.id + 1000, "ana"), std::invalid_argument);
   EXPECT_THROW(catalog.undoLabel(e.id, ""), std::invalid_argument);
+  // Names that are not names: what a terminal obeys (an escape, a text-direction override), and
+  // what shows nothing (invisible spaces only, a leading byte order mark), or is not UTF-8.
+  for (const char* by : {"a\x1b[31mb", "ana\u202e", "\u200f", "\u200b\u00a0\u3000", "\ufeffana",
+                         "a\nb", "\xc0\xaf", "a\u0085b"}) {
+    EXPECT_THROW(catalog.setLabel(ids[1], 1, by), std::invalid_argument) << by;
+    EXPECT_THROW(catalog.undoLabel(e.id, by), std::invalid_argument) << by;
+    EXPECT_FALSE(labellerNameProblem(by).empty()) << by;
+    EXPECT_EQ(labellerNameProblem(by).find(by), std::string::npos) << "the name is not quoted";
+  }
+  EXPECT_EQ(labellerNameProblem("Zoë Ångström-李"), "");
   EXPECT_THROW(catalog.setLabels(catalog.scenes()[0].id, {{ids[1], 1}, {ids[0], 7}}),
                std::invalid_argument);
   EXPECT_EQ(readBytes(file), before);
