@@ -64,6 +64,50 @@ int logMessage(const mg_connection*, const char* message) {
   return 1;
 }
 
+/// The request's path, percent-decoded here from what civetweb hands over undecoded
+/// (decode_url "no": civetweb's own decoding ends the path at a %00, so that "mesh.ply%00.txt"
+/// would name mesh.ply); nothing when it holds an encoded NUL or other control character, an
+/// encoded slash or backslash (a name with a slash in it is not what it seems: "objects%2frank"
+/// would pass rules that judge the path segment by segment), or a malformed escape.
+std::optional<std::string> decodedPath(std::string_view raw) {
+  const auto hex = [](char c) -> int {
+    if (c >= '0' && c <= '9') return c - '0';
+    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+    return -1;
+  };
+  std::string path;
+  path.reserve(raw.size());
+  for (std::size_t i = 0; i < raw.size(); ++i) {
+    char c = raw[i];
+    if (c == '%') {
+      if (i + 2 >= raw.size()) return std::nullopt;
+      const int high = hex(raw[i + 1]), low = hex(raw[i + 2]);
+      if (high < 0 || low < 0) return std::nullopt;
+      c = static_cast<char>(high * 16 + low);
+      if (c == '/' || c == '\\') return std::nullopt;
+      i += 2;
+    }
+    const auto byte = static_cast<unsigned char>(c);
+    if (byte < 0x20 || byte == 0x7f) return std::nullopt;
+    path.push_back(c);
+  }
+  return path;
+}
+
+/// Whether a Content-Type names application/json: that media type exactly (in any case), with or
+/// without parameters ("; charset=utf-8"), not a longer one that starts the same
+/// ("application/jsonx").
+bool isJsonType(std::string_view type) {
+  std::string_view media = type.substr(0, type.find(';'));
+  const auto space = [](char c) { return c == ' ' || c == '\t'; };
+  while (!media.empty() && space(media.front())) media.remove_prefix(1);
+  while (!media.empty() && space(media.back())) media.remove_suffix(1);
+  constexpr std::string_view kJson = "application/json";
+  return media.size() == kJson.size() &&
+         mg_strncasecmp(media.data(), kJson.data(), kJson.size()) == 0;
+}
+
 /// How long a client may take to send a request's body, and to read a reply: a slow one keeps a
 /// server thread, so each is bounded (10 s, and for a reply 1 s more per 256 kB).
 constexpr double kBodySeconds = 10.0;
@@ -251,6 +295,13 @@ struct HttpServer::Impl {
     if (host && !ownHost(host)) {
       return HttpReply::text(403, "this server answers only to its own address");
     }
+    const std::optional<std::string> path =
+        decodedPath(info->local_uri_raw ? info->local_uri_raw : "");
+    if (!path) {
+      return HttpReply::text(400,
+                             "the path holds an encoded NUL, control character, slash or "
+                             "backslash, or a malformed %-escape");
+    }
     const bool post = request.method == "POST" && options.max_body_bytes > 0;
     if (request.method != "GET" && !*head && !post) {
       return HttpReply::text(405, options.max_body_bytes > 0
@@ -259,7 +310,7 @@ struct HttpServer::Impl {
     }
     // The decoded path as sent, not civetweb's cleaned one: a path that needs cleaning (dot
     // segments) is refused by the routes rather than quietly turned into another.
-    request.path = info->local_uri_raw ? info->local_uri_raw : "";
+    request.path = *path;
     request.query = info->query_string ? info->query_string : "";
     if (post) {
       if (std::optional<HttpReply> refused = readBody(conn, info, &request.body)) return *refused;
@@ -271,7 +322,7 @@ struct HttpServer::Impl {
   std::optional<HttpReply> readBody(mg_connection* conn, const mg_request_info* info,
                                     std::string* body) const {
     const char* type = mg_get_header(conn, "Content-Type");
-    if (!type || mg_strncasecmp(type, "application/json", 16) != 0) {
+    if (!type || !isJsonType(type)) {
       return HttpReply::text(415, "a POST here carries Content-Type: application/json");
     }
     if (const char* origin = mg_get_header(conn, "Origin")) {
@@ -335,6 +386,8 @@ HttpServer::HttpServer(const ServeAddress& address, Handler handler,
   // A few threads: a page needs two or three connections, and a request beyond them waits in
   // the queue; a connection that sends nothing is dropped after 5 s, and a request over 16 kB
   // (headers included) is refused, so neither many nor slow nor huge requests tie the server up.
+  // The path comes undecoded: decodedPath refuses what civetweb's decoding would hide (%00 ends
+  // its string).
   const char* civetweb_options[] = {"listening_ports",
                                     listening.c_str(),
                                     "num_threads",
@@ -348,6 +401,8 @@ HttpServer::HttpServer(const ServeAddress& address, Handler handler,
                                     "enable_keep_alive",
                                     "no",
                                     "enable_directory_listing",
+                                    "no",
+                                    "decode_url",
                                     "no",
                                     "access_control_allow_origin",
                                     "",
@@ -388,8 +443,6 @@ HttpServer::~HttpServer() {
 }
 
 fs::path resultFile(const fs::path& folder, std::string_view relative) {
-  // civetweb decodes the path in place, so a %00 ends it: "a%00.txt" names "a", which these
-  // rules then judge.
   if (relative.empty() || relative.size() > 1024) return {};
   if (relative.find('\\') != std::string_view::npos) return {};
   std::size_t at = 0;

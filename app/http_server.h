@@ -15,7 +15,9 @@
 /// docs/live.md has the choice in full. civetweb stays inside http_server.cpp.
 ///
 /// What every route gets from it: a request whose Host is not the server's own is refused (403:
-/// DNS rebinding); only GET and HEAD, and POST where the server takes bodies (405 otherwise); a
+/// DNS rebinding); a path with an encoded NUL or other control character, an encoded slash or
+/// backslash, or a malformed %-escape is refused (400) before any route sees it; only GET and
+/// HEAD, and POST where the server takes bodies (405 otherwise); a
 /// request over 16 kB of headers is refused by civetweb; an exception in a handler becomes a 500.
 /// A client that sends its body or reads the reply slowly keeps one of the 8 server threads for
 /// a bounded time only: about 10 s for a body (up to 15 when it stops short), 10 s plus 1 s per
@@ -37,7 +39,8 @@ ServeAddress parseServeAddress(const std::string& text, const std::string& flag 
 
 struct HttpRequest {
   std::string method;  ///< "GET", "HEAD" or "POST"
-  std::string path;    ///< percent-decoded, as sent: not cleaned of dot segments
+  std::string path;    ///< percent-decoded, as sent: not cleaned of dot segments; no control
+                       ///< character, and every '/' in it was sent as one
   std::string query;   ///< undecoded, without '?'
   std::string body;    ///< POST only: the JSON body
   bool head() const { return method == "HEAD"; }
@@ -66,9 +69,9 @@ struct HttpReply {
 struct HttpServerOptions {
   std::string flag = "--serve";  ///< the option that chose the address, for messages
   /// POST requests with a JSON body of at most this many bytes are taken; 0: none (405). A POST
-  /// must say Content-Type application/json (415), give its length (411, 413 past this), and,
-  /// when it says where it comes from (Origin), come from this server (403): a page of another
-  /// site cannot post to it.
+  /// must say Content-Type application/json (that media type, any case, parameters allowed; 415),
+  /// give its length (411, 413 past this), and, when it says where it comes from (Origin), come
+  /// from this server (403): a page of another site cannot post to it.
   std::size_t max_body_bytes = 0;
   /// Lower the server threads below the work (nice 10): a scan is never slowed by its page.
   bool lower_priority = false;

@@ -7,11 +7,11 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
-#include <iterator>
 #include <memory>
 #include <set>
 #include <string>
 
+#include "objscan/core/atomic_file.h"
 #include "objscan/core/error.h"
 #include "objscan/core/intrinsics.h"
 #include "objscan/core/log.h"
@@ -30,12 +30,14 @@ class SettingsFile : public CLI::Config {
     return {};  // settings.json is written by report::writeSettings, from the parsed options
   }
 
-  std::vector<CLI::ConfigItem> from_config(std::istream& in) const override {
-    const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  std::vector<CLI::ConfigItem> from_config(std::istream&) const override {
+    // Read by name with the settings reader's checks and size cap, not from CLI11's stream (which
+    // would take /dev/zero to the end of memory); settingsFileCheck has refused what is no
+    // regular file before CLI11 opened it.
     const std::string file = app_->get_config_ptr()->as<std::string>();
     report::Settings settings;
     try {
-      settings = report::parseSettings(text, file);
+      settings = report::readSettings(file);
     } catch (const InputError& e) {
       throw CLI::ConfigError(e.what());
     }
@@ -113,6 +115,20 @@ std::string absolutePath(const std::string& value) {
   return ec ? value : absolute.lexically_normal().string();
 }
 
+/// --config names a regular file of at most report::kMaxSettingsBytes. Checked before CLI11 opens
+/// it (its results are validated when it asks for the file's name): opening a FIFO would wait for
+/// a writer forever.
+const CLI::Validator settingsFileCheck(
+    [](std::string& path) -> std::string {
+      try {
+        (void)readWholeFile(path, report::kMaxSettingsBytes);
+      } catch (const InputError& e) {
+        return e.what();
+      }
+      return {};
+    },
+    "");
+
 }  // namespace
 
 void addConfigOption(CLI::App& app) {
@@ -120,7 +136,8 @@ void addConfigOption(CLI::App& app) {
   // it because the subcommands fall through to it.
   app.set_config("--config", "",
                  "A settings.json of an earlier run (OUT/settings.json), after the command: its "
-                 "options become the command's defaults; flags given with it override them");
+                 "options become the command's defaults; flags given with it override them")
+      ->check(settingsFileCheck);
   app.config_formatter(std::make_shared<SettingsFile>(&app));
 }
 

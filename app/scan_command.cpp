@@ -2,6 +2,7 @@
 
 #include <cstdio>
 #include <cstring>
+#include <functional>
 #include <system_error>
 #include <utility>
 #include <vector>
@@ -102,8 +103,11 @@ class ScanRun {
     return kExitInterrupted;
   }
 
-  pipeline::FusedScene fuse() {
+  /// `after_open` runs once the source is open: where the output folder is prepared, so that a
+  /// source that cannot be opened (no sensor) leaves nothing behind.
+  pipeline::FusedScene fuse(std::function<void()> after_open) {
     pipeline::FuseLimits limits = options_.limits;
+    limits.after_open = std::move(after_open);
     limits.progress_label = "scan [1/4] fusing frames";
     limits.live_stop_ends_capture = true;
     limits.stop = &StopSignals::flag();
@@ -260,15 +264,15 @@ int runScan(ScanCommandOptions options) {
   // Before the folder is touched: a port that cannot be had leaves nothing behind.
   const std::unique_ptr<LiveRun> live = LiveRun::start(options.serve, live_settings);
   try {
-    const OutputFolderLock lock = requireWritableFolder(options.out);
-
+    OutputFolderLock lock;  // held from when the source is open to the end of the scan
     StopSignals signals;
     ScanRun run(options, live.get());
     const auto stop = [&](std::vector<std::string> missing) {
       if (live) live->finish(stoppedFinal(missing), false);
       return run.stopHere(std::move(missing));
     };
-    pipeline::FusedScene fused = run.fuse();
+    pipeline::FusedScene fused =
+        run.fuse([&lock, &options] { lock = requireWritableFolder(options.out); });
     if (fused.stats.interrupted) {
       // On a sensor, Ctrl-C is how capture ends: the scan goes on with what was fused.
       if (!fused.stats.live) {

@@ -1,6 +1,5 @@
 #include "view_command.h"
 
-
 #include <cstdio>
 #include <cstdlib>
 #include <memory>
@@ -9,6 +8,7 @@
 #include "exit_codes.h"
 #include "objscan/core/error.h"
 #include "objscan/core/log.h"
+#include "objscan/discovery/catalog.h"
 #include "options.h"
 #include "stop_signals.h"
 #include "view_server.h"
@@ -21,11 +21,28 @@ namespace fs = std::filesystem;
 /// The port view listens on when --serve is not given: one a user can bookmark.
 constexpr int kDefaultPort = 8090;
 
-std::string defaultLabeller() {
-  for (const char* name : {"OBJSCAN_LABELLER", "USER", "LOGNAME"}) {
-    if (const char* v = std::getenv(name); v && *v) return v;
+/// Who labels: --labeller, else $OBJSCAN_LABELLER, $USER or $LOGNAME (the first set and not
+/// empty), else "unknown". Throws std::invalid_argument (exit 2) naming where a name that is not
+/// one came from, without printing it (it may hold what a terminal obeys).
+std::string labellerOf(const std::string& given) {
+  std::string name = "unknown";
+  std::string from;
+  if (!given.empty()) {
+    name = given;
+    from = "--labeller";
+  } else {
+    for (const char* variable : {"OBJSCAN_LABELLER", "USER", "LOGNAME"}) {
+      if (const char* v = std::getenv(variable); v && *v) {
+        name = v;
+        from = std::string("$") + variable;
+        break;
+      }
+    }
   }
-  return "unknown";
+  if (const std::string problem = discovery::labellerNameProblem(name); !problem.empty()) {
+    throw std::invalid_argument(from + ": not a labeller's name: " + problem);
+  }
+  return name;
 }
 
 }  // namespace
@@ -69,9 +86,9 @@ int runView(const ViewCommandOptions& options) {
   if (options.address) address = parseServeAddress(*options.address);
 
   ViewSettings settings;
+  settings.labeller = labellerOf(options.labeller);  // before any file is read
   settings.dir = options.dir;
   settings.catalog = options.catalog;
-  settings.labeller = options.labeller.empty() ? defaultLabeller() : options.labeller;
   settings.max_preview_triangles = options.max_preview_triangles;
   ViewData data(settings);
   // Ctrl-C from here on ends the viewer cleanly (exit 0), also while the meshes are read.

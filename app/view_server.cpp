@@ -70,40 +70,26 @@ std::optional<std::int64_t> wholeNumber(std::string_view text) {
   return value;
 }
 
-/// Who labels: the page's name when it gives a usable one (1 to 64 bytes, no control
-/// characters), else the server's.
-std::optional<std::string> labellerOf(const Json& body, const std::string& fallback) {
+/// Who labels: the page's name when it gives one, else (no "by", or null) the server's; nothing
+/// when the page's is not a name (discovery::labellerNameProblem says why: `problem`).
+std::optional<std::string> labellerOf(const Json& body, const std::string& fallback,
+                                      std::string* problem) {
   const auto it = body.find("by");
   if (it == body.end() || it->is_null()) return fallback;
-  if (!it->is_string()) return std::nullopt;
-  const std::string by = it->get<std::string>();
-  if (by.empty()) return fallback;
-  // nlohmann has checked the UTF-8; count characters and refuse the invisible and the
-  // misleading: controls (C0, DEL, C1), line and paragraph separators, bidi overrides.
-  std::size_t characters = 0;
-  bool visible = false;
-  for (std::size_t i = 0; i < by.size();) {
-    const auto c = static_cast<unsigned char>(by[i]);
-    const std::size_t length = c < 0x80 ? 1 : c < 0xe0 ? 2 : c < 0xf0 ? 3 : 4;
-    std::uint32_t code = length == 1 ? c : c & (0x3fu >> (length - 1));
-    for (std::size_t k = 1; k < length && i + k < by.size(); ++k) {
-      code = (code << 6) | (static_cast<unsigned char>(by[i + k]) & 0x3fu);
-    }
-    i += length;
-    ++characters;
-    if (code < 0x20 || (code >= 0x7f && code <= 0x9f) || code == 0x2028 || code == 0x2029 ||
-        (code >= 0x202a && code <= 0x202e) || (code >= 0x2066 && code <= 0x2069)) {
-      return std::nullopt;
-    }
-    visible |= code != ' ';
+  if (!it->is_string()) {
+    *problem = "it is not a string";
+    return std::nullopt;
   }
-  if (characters > 64 || !visible) return std::nullopt;
+  std::string by = it->get<std::string>();
+  *problem = discovery::labellerNameProblem(by);
+  if (!problem->empty()) return std::nullopt;
   return by;
 }
 
-constexpr const char* kBadLabeller =
-    "\"by\" is a name of 1 to 64 characters, not only spaces, without control or direction "
-    "characters";
+/// The 400 for a "by" that is not a name.
+HttpReply badLabeller(const std::string& problem) {
+  return jsonError(400, "\"by\" is not a labeller's name: " + problem);
+}
 
 /// A POST's body as a JSON object, or nothing (then `error` is the 400 to answer).
 std::optional<Json> objectBody(const HttpRequest& request, HttpReply* error) {
@@ -499,8 +485,9 @@ HttpReply ViewServer::label(const HttpRequest& request) {
     }
     if (!value) return jsonError(400, "a label is object, not_object, unsure or null");
   }
-  const std::optional<std::string> by = labellerOf(body, data_.settings().labeller);
-  if (!by) return jsonError(400, kBadLabeller);
+  std::string problem;
+  const std::optional<std::string> by = labellerOf(body, data_.settings().labeller, &problem);
+  if (!by) return badLabeller(problem);
   const auto id = segment->get<std::int64_t>();
   // Only segments of the scenes shown: the page labels what it shows.
   const ViewScene* owner = nullptr;
@@ -535,8 +522,9 @@ HttpReply ViewServer::undo(const HttpRequest& request) {
   if (event == body.end() || !event->is_number_integer()) {
     return jsonError(400, "give \"event\": the id of the label event to undo");
   }
-  const std::optional<std::string> by = labellerOf(body, data_.settings().labeller);
-  if (!by) return jsonError(400, kBadLabeller);
+  std::string problem;
+  const std::optional<std::string> by = labellerOf(body, data_.settings().labeller, &problem);
+  if (!by) return badLabeller(problem);
   if (!data_.catalog()) return jsonError(409, "labelling is off: " + data_.labellingOff());
   const auto id = event->get<std::int64_t>();
   std::lock_guard<std::mutex> lock(data_.catalogMutex());

@@ -26,22 +26,6 @@ std::string errnoText() { return std::strerror(errno); }
 /// names, temporaryWriter reads them back).
 constexpr std::string_view kTemporaryMark = ".tmp-";
 
-/// A name next to `path` that no other writer picks: "<name>.tmp-<pid>-<random>", or
-/// ".objscan.tmp-<pid>-<random>" when that would pass the file system's 255-byte name limit (a
-/// file named near the limit can still be written).
-fs::path temporarySibling(const fs::path& path) {
-  static thread_local std::mt19937_64 rng{std::random_device{}()};
-  const std::string suffix = std::string(kTemporaryMark) + std::to_string(::getpid()) + "-" +
-                             std::to_string(rng() % 1000000000ULL);
-  constexpr std::size_t kMaxNameBytes = 255;
-  if (path.filename().string().size() + suffix.size() > kMaxNameBytes) {
-    return path.parent_path() / (".objscan" + suffix);
-  }
-  fs::path tmp = path;
-  tmp += suffix;
-  return tmp;
-}
-
 /// The writer's pid when `name` is exactly what temporarySibling makes ("NAME.tmp-PID-N" with N
 /// below 10^9, or ".objscan.tmp-PID-N"); 0 for any other name.
 long temporaryWriter(const std::string& name) {
@@ -62,6 +46,21 @@ long temporaryWriter(const std::string& name) {
 }
 
 }  // namespace
+
+/// "<name>.tmp-<pid>-<random>", or ".objscan.tmp-<pid>-<random>" when that would pass the file
+/// system's 255-byte name limit (a file named near the limit can still be written).
+fs::path temporarySibling(const fs::path& path) {
+  static thread_local std::mt19937_64 rng{std::random_device{}()};
+  const std::string suffix = std::string(kTemporaryMark) + std::to_string(::getpid()) + "-" +
+                             std::to_string(rng() % 1000000000ULL);
+  constexpr std::size_t kMaxNameBytes = 255;
+  if (path.filename().string().size() + suffix.size() > kMaxNameBytes) {
+    return path.parent_path() / (".objscan" + suffix);
+  }
+  fs::path tmp = path;
+  tmp += suffix;
+  return tmp;
+}
 
 std::size_t removeStaleTemporaries(const fs::path& folder) {
   std::size_t removed = 0;
@@ -126,7 +125,7 @@ void writeFileAtomically(const fs::path& path, std::string_view bytes) {
   }
 }
 
-std::string readWholeFile(const fs::path& path) {
+std::string readWholeFile(const fs::path& path, std::uintmax_t max_bytes) {
   std::error_code ec;
   const fs::file_status status = fs::status(path, ec);
   if (status.type() == fs::file_type::not_found) {
@@ -136,7 +135,13 @@ std::string readWholeFile(const fs::path& path) {
   if (status.type() == fs::file_type::directory) {
     throw InputError(path, "is a directory, not a file");
   }
-  if (status.type() != fs::file_type::regular) throw InputError(path, "is not a regular file");
+  if (status.type() != fs::file_type::regular) {
+    throw InputError(path, "is not a regular file (a device, a FIFO or a socket)");
+  }
+  if (const std::uintmax_t bytes = fs::file_size(path, ec); !ec && bytes > max_bytes) {
+    throw InputError(path, "is " + std::to_string(bytes) + " bytes, more than the " +
+                               std::to_string(max_bytes) + " such a file can be");
+  }
 
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, "cannot open for reading: " + errnoText());
@@ -144,6 +149,10 @@ std::string readWholeFile(const fs::path& path) {
   in.seekg(0, std::ios::end);
   const std::streamoff size = in.tellg();
   if (size < 0) throw InputError(path, "cannot determine the file size");
+  if (static_cast<std::uintmax_t>(size) > max_bytes) {  // it grew since it was looked at
+    throw InputError(path, "is " + std::to_string(size) + " bytes, more than the " +
+                               std::to_string(max_bytes) + " such a file can be");
+  }
   bytes.resize(static_cast<size_t>(size));
   in.seekg(0, std::ios::beg);
   in.read(bytes.data(), size);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <numeric>
 #include <random>
@@ -633,12 +634,29 @@ ObjectnessModel ObjectnessModel::load(const std::filesystem::path& path) {
     }
     const auto mean = finiteNumbers(j.at("mean"), kMeasureCount, "the normaliser's mean");
     const auto sd = finiteNumbers(j.at("sd"), kMeasureCount, "the normaliser's deviation");
+    for (std::size_t k = 0; k < kMeasureCount; ++k) {
+      // Each measure is divided by its deviation: a negative one would turn the measure around,
+      // a tiny one blow it up to infinity. 0 is what train writes for a measure that did not
+      // vary (or was never known): it then counts as the mean.
+      if (sd[k] < 0.0 || (sd[k] > 0.0 && sd[k] < 1.0 / kLargestModelNumber)) {
+        char value[32];
+        std::snprintf(value, sizeof value, "%g", sd[k]);
+        throw bad(std::string("\"sd\": the deviation of ") + kMeasureNames[k] + " is " + value +
+                  "; it is 0 (the measure does not vary) or at least 1e-30");
+      }
+    }
     std::copy(mean.begin(), mean.end(), impl->normaliser.mean.begin());
     std::copy(sd.begin(), sd.end(), impl->normaliser.sd.begin());
     impl->params.c = finiteNumber(j.at("C"), "C");
     impl->params.gamma = finiteNumber(j.at("gamma"), "gamma");
     impl->params.k = wholeNumber(j.at("k"), "k");
-    impl->sign = finiteNumber(j.at("sign"), "sign") < 0 ? -1.0 : 1.0;
+    impl->sign = finiteNumber(j.at("sign"), "sign");
+    if (impl->sign != 1.0 && impl->sign != -1.0) {
+      char value[32];
+      std::snprintf(value, sizeof value, "%g", impl->sign);
+      throw bad(std::string("\"sign\" is ") + value +
+                "; it is 1 or -1 (which way the score points)");
+    }
     const double cv_ap = j.value("cross_validated_ap", -1.0);
     if (cv_ap >= 0.0 && cv_ap <= 1.0) impl->cv_ap = cv_ap;
     const std::size_t used =

@@ -9,6 +9,7 @@
 #include "objscan/core/log.h"
 #include "objscan/core/ply_io.h"
 #include "objscan/discovery/evaluation.h"
+#include "objscan/pipeline/sources.h"
 #include "objscan/report/results_io.h"
 
 namespace objscan::pipeline {
@@ -16,6 +17,7 @@ namespace objscan::pipeline {
 namespace fs = std::filesystem;
 
 fs::path findGroundTruth(const std::string& source) {
+  if (isLiveSource(source)) return {};  // a sensor, not the folder `live` (./live)
   const fs::path p = source;
   fs::path candidate;
   std::error_code ec;

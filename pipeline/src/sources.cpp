@@ -22,10 +22,8 @@ std::unique_ptr<capture::FrameSource> openFrameSource(const std::string& spec,
   if (options.record && !isLiveSource(spec)) {
     throw InputError(spec, "--record needs a live source (a sensor or virtual:...)");
   }
-  if (spec.rfind("synth:", 0) == 0 || fs::is_directory(path, ec)) {
-    return capture::openSynthOrFolderSource(spec, options.selection, options.intrinsics,
-                                            options.intrinsics_origin);
-  }
+  // The sensor names come before the file system: `live` is the sensor even where the working
+  // directory holds a folder of that name (./live names the folder).
   if (isLiveSource(spec)) {
     if (!options.selection.selectsAll()) {
       throw std::invalid_argument("--start/--end/--every apply to recordings, not live sensors");
@@ -36,6 +34,10 @@ std::unique_ptr<capture::FrameSource> openFrameSource(const std::string& spec,
       record->ground_truth = virtualSensorGroundTruth(uri);
     }
     return capture::openSensor(uri, options.intrinsics, options.intrinsics_origin, record);
+  }
+  if (spec.rfind("synth:", 0) == 0 || fs::is_directory(path, ec)) {
+    return capture::openSynthOrFolderSource(spec, options.selection, options.intrinsics,
+                                            options.intrinsics_origin);
   }
   if (path.extension() == ".oni" || path.extension() == ".ONI") {
     return capture::openOniFile(path, options.selection, options.intrinsics,

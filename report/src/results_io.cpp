@@ -694,7 +694,9 @@ void writeSettings(const fs::path& file, const Settings& s) {
   writeJson(file, doc);
 }
 
-Settings readSettings(const fs::path& file) { return parseSettings(readWholeFile(file), file); }
+Settings readSettings(const fs::path& file) {
+  return parseSettings(readWholeFile(file, kMaxSettingsBytes), file);
+}
 
 Settings parseSettings(const std::string& text, const fs::path& file) {
   const Json doc = json_node::parseText(text, file);

@@ -418,6 +418,60 @@ TEST(DiscoverCli, BadInputGivesOneErrorLine) {
   EXPECT_EQ(readWholeFile(dir / "corrupt.sqlite"), std::string(4096, 'x'));
 }
 
+/// A catalog of one labelled scene whose last page is damaged where only a check of every page
+/// finds it (its schema page is whole).
+void writeDamagedCatalog(const fs::path& file) {
+  {
+    discovery::Catalog catalog(file);
+    std::vector<discovery::CatalogSegment> segments(40);
+    for (std::size_t i = 0; i < segments.size(); ++i) {
+      segments[i].label = static_cast<int>(i % 2);
+      for (std::int32_t v = 0; v < 3000; ++v) segments[i].vertices.push_back(v);
+    }
+    catalog.addScene({0, "desk", "aa", 3000, "settings"}, segments);
+  }
+  std::string bytes = readWholeFile(file);
+  constexpr std::size_t kPage = 4096;  // SQLite's default page size
+  for (std::size_t i = bytes.size() - kPage; i < bytes.size() - kPage + 12; ++i) {
+    bytes[i] = static_cast<char>(0xa5);
+  }
+  testing::writeBytes(file, bytes);
+}
+
+TEST(DiscoverCli, CatalogsThatAreNotCatalogsAreRefusedBeforeAnyWriteAndLeftAsTheyAre) {
+  TempDir dir;
+  writePly(dir / "good.ply", twoMounds());
+  const std::string out = (dir / "out").string();
+  const fs::path model = dir / "model.json";
+  // An empty file is not a catalog, and is not made one.
+  const fs::path empty = dir / "empty.sqlite";
+  testing::writeBytes(empty, "");
+  expectOneErrorLine(
+      objscan({"discover", (dir / "good.ply").string(), "--out", out, "--catalog", empty.string()}),
+      2, empty.string() + ": is empty (0 bytes), not a catalog");
+  expectOneErrorLine(objscan({"train", "--catalog", empty.string(), "--model", model.string()}), 2,
+                     empty.string() + ": is empty (0 bytes), not a catalog");
+  EXPECT_EQ(fs::file_size(empty), 0u);
+  // A device: SQLite would have made /dev/null-journal.
+  expectOneErrorLine(
+      objscan({"discover", (dir / "good.ply").string(), "--out", out, "--catalog", "/dev/null"}), 2,
+      "/dev/null: is not a regular file");
+  expectOneErrorLine(objscan({"train", "--catalog", "/dev/null", "--model", model.string()}), 2,
+                     "/dev/null: is not a regular file");
+  // Damaged past its schema page: neither trained on nor added to.
+  const fs::path damaged = dir / "damaged.sqlite";
+  writeDamagedCatalog(damaged);
+  const std::string before = readWholeFile(damaged);
+  expectOneErrorLine(objscan({"train", "--catalog", damaged.string(), "--model", model.string()}),
+                     2, damaged.string() + ": damaged: SQLite's quick_check finds");
+  expectOneErrorLine(objscan({"discover", (dir / "good.ply").string(), "--out", out, "--catalog",
+                              damaged.string()}),
+                     2, damaged.string() + ": damaged: SQLite's quick_check finds");
+  EXPECT_EQ(readWholeFile(damaged), before);
+  EXPECT_FALSE(fs::exists(model));
+  EXPECT_FALSE(fs::exists(dir / "damaged.sqlite-journal"));
+}
+
 /// One frame of the shipped synthetic recording as a scene: the camera's points meshed, its
 /// objects found in them. The five best hypotheses, moved into the world by the frame's true pose,
 /// hold at least three different ground-truth objects, each of those 80 % or more of its

@@ -147,6 +147,16 @@ TEST(LiveServer, HostileRequestsGet4xxAndTheScanGoesOn) {
   EXPECT_EQ(j["frames"]["fused"], 60);
   EXPECT_EQ(get(port, "/results/report.html").status, 200);
   EXPECT_EQ(get(port, "/results/objects/rank_001.ply").status, 200);
+  // The same file by an encoded slash or backslash, or with an encoded NUL (which ended the
+  // path) or control character: refused, though the file is there.
+  for (const std::string target :
+       {"/results/objects%2frank_001.ply", "/results/objects%2Frank_001.ply",
+        "/results/objects%5crank_001.ply", "/results/report.html%00.txt",
+        "/results/report.html%0d%0a", "/results/report.html%"}) {
+    const Answer a = get(port, target);
+    EXPECT_GE(a.status, 400) << target;
+    EXPECT_LT(a.status, 500) << target;
+  }
   // Clients that go away in the middle of a download (a reset, not a close): the server goes on.
   for (int i = 0; i < 10; ++i) {
     const int fd = connectTo(port);
@@ -323,6 +333,13 @@ TEST(LiveServer, FuseServesTheFinalState) {
   const Answer mesh = get(port, "/results/mesh.ply");
   EXPECT_EQ(mesh.status, 200);
   EXPECT_EQ(mesh.body, testing::readBytes(dir / "f" / "mesh.ply"));
+  // An encoded NUL ended the path, so these were the mesh and the state: refused now.
+  for (const std::string target : {"/results/mesh.ply%00.txt", "/api/state%00x",
+                                   "/api/model.jpg%00", "/results/mesh%2eply%00"}) {
+    const Answer a = get(port, target);
+    EXPECT_GE(a.status, 400) << target;
+    EXPECT_LT(a.status, 500) << target;
+  }
   EXPECT_EQ(get(port, "/api/model.jpg").body.substr(0, 3), "\xff\xd8\xff");  // a JPEG
   fuse.signal(SIGTERM);
   EXPECT_EQ(fuse.wait(60), 0) << fuse.err();

@@ -5,8 +5,10 @@
 
 #include <gtest/gtest.h>
 
-#include <csignal>
+#include <sys/stat.h>
+#include <unistd.h>
 
+#include <csignal>
 #include <filesystem>
 #include <map>
 #include <set>
@@ -17,6 +19,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "background_process.h"
 #include "cli_expect.h"
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/ply_io.h"
@@ -454,6 +457,40 @@ TEST_F(ScanCli, SettingsJsonSaysHowTheRunWasMadeAndConfigRepeatsIt) {
       foreign.string() + ": \"options.frobnicate\" is not an option of objscan scan");
 }
 
+/// objscan with `args`, guarded so that a regression fails instead of hanging or exhausting the
+/// machine: killed after 10 s (exit -1; a FIFO opened for reading waits for a writer forever)
+/// and held to 3 GB of address space (/dev/zero read to its end takes all memory).
+ProcessResult guardedObjscan(const std::vector<std::string>& args) {
+  std::string command = "ulimit -v 3000000 && exec '" + std::string(OBJSCAN_EXE) + "'";
+  for (const std::string& a : args) command += " '" + a + "'";  // test paths hold no quote
+  testing::BackgroundProcess run({"/bin/sh", "-c", command});
+  ProcessResult r;
+  r.exit_code = run.wait(10);
+  r.out = run.out();
+  r.err = run.err();
+  return r;
+}
+
+TEST(ScanCliErrors, SettingsThatAreNoRegularFileOrTooLargeAreRefusedBeforeAnyRead) {
+  TempDir dir;
+  const fs::path fifo = dir / "settings.fifo";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  // 2 GB that take no disk: a sparse file.
+  const fs::path sparse = dir / "sparse.json";
+  testing::writeBytes(sparse, "");
+  ASSERT_EQ(::truncate(sparse.c_str(), std::int64_t{2} << 30), 0);
+  for (const fs::path& file : {fs::path("/dev/zero"), fs::path("/dev/urandom"), fifo, sparse}) {
+    const fs::path out = dir / "out";
+    const ProcessResult r =
+        guardedObjscan({"scan", "--config", file.string(), "--out", out.string()});
+    expectOneErrorLine(r, 2, file.string() + ": ");
+    EXPECT_NE(r.err.find(file == sparse ? "more than the 1048576" : "not a regular file"),
+              std::string::npos)
+        << r.err;
+    EXPECT_FALSE(fs::exists(out)) << file;
+  }
+}
+
 TEST(ScanCliErrors, AnOutputFolderThatCannotBeWrittenFailsBeforeFusing) {
   TempDir dir;
   fs::path read_only = dir / "read_only";
@@ -608,6 +645,20 @@ TEST(ScanCliLive, CtrlCEndsLiveCaptureAndTheScanGoesOn) {
 TEST(ScanCliLive, NoSensorAttachedIsExitCodeThree) {
   TempDir dir;
   expectOneErrorLine(objscan({"scan", "--out", (dir / "out").string()}), 3, "no sensor found");
+  // Nothing is made before the source is open.
+  EXPECT_FALSE(fs::exists(dir / "out"));
+  // `live` is the sensor, also where a folder of that name is in the working directory (which
+  // ./live names).
+  fs::create_directories(dir / "live");
+  testing::ProcessOptions in_dir;
+  in_dir.cwd = dir.path();
+  expectOneErrorLine(testing::runProcess({OBJSCAN_EXE, "scan", "--out", "out"}, in_dir), 3,
+                     "no sensor found");
+  expectOneErrorLine(testing::runProcess({OBJSCAN_EXE, "scan", "live", "--out", "out"}, in_dir), 3,
+                     "no sensor found");
+  EXPECT_FALSE(fs::exists(dir / "out"));
+  expectOneErrorLine(testing::runProcess({OBJSCAN_EXE, "scan", "./live", "--out", "out"}, in_dir),
+                     2, "live: is neither a TUM RGB-D folder");
   // --record belongs to live sources only.
   expectOneErrorLine(objscan({"scan", "synth:3,frames=5", "--out", (dir / "out").string(),
                               "--record", (dir / "x.oni").string()}),

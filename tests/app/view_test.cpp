@@ -222,12 +222,22 @@ TEST(ViewServer, HostileAndMalformedRequestsGet4xxAndTheCatalogStaysWhole) {
         "/results/..%2fcat.sqlite", "/results/.lock", "/results/", "/results/objects",
         "/api/scenes/1/mesh", "/api/scenes/-1/mesh", "/api/scenes/0x0/mesh",
         "/api/scenes/99999999999999999999/mesh", "/api/scenes/0/segments/1/../../mesh",
-        "/api/scenes/0/hypotheses/0/vertices", "/api/scenes/0/segments/abc/vertices",
-        "/etc/passwd", "/assets/../../etc/passwd"}) {
+        "/api/scenes/0/hypotheses/0/vertices", "/api/scenes/0/segments/abc/vertices", "/etc/passwd",
+        "/assets/../../etc/passwd",
+        // An encoded NUL (it ended the path: this named mesh.ply) or slash, a control character,
+        // a malformed escape.
+        "/results/mesh.ply%00.txt", "/results/objects%2frank_001.ply",
+        "/results/objects%2Frank_001.ply", "/results/objects%5crank_001.ply", "/api/results%00x",
+        "/api/scenes/0/mesh%00", "/results/mesh.ply%0a", "/results/mesh.ply%",
+        "/results/%zzmesh.ply"}) {
     const Answer a = get(port, target);
     EXPECT_TRUE(a.status >= 400 && a.status < 500) << target << ": " << a.status;
     EXPECT_EQ(a.body.find("root:"), std::string::npos) << target;
   }
+  // What the rules refuse is refused for what it is, not as a missing file: the same names
+  // sent plainly are served.
+  EXPECT_EQ(get(port, "/results/objects/rank_001.ply").status, 200);
+  EXPECT_EQ(get(port, "/results/%6Desh.ply").status, 200);  // %6D is m
   EXPECT_EQ(get(port, "/api/scenes/0/at?vertex=x").status, 400);
   EXPECT_EQ(get(port, "/api/scenes/0/at?vertex=4294969232").status, 400) << "no 32-bit wrap";
   EXPECT_EQ(get(port, "/api/results", "evil.example:" + std::to_string(port)).status, 403);
@@ -235,6 +245,11 @@ TEST(ViewServer, HostileAndMalformedRequestsGet4xxAndTheCatalogStaysWhole) {
   // Labels: JSON only, from this server's own pages, small, well-formed.
   EXPECT_EQ(post(port, "/api/label", label, "text/plain").status, 415);
   EXPECT_EQ(post(port, "/api/label", label, "").status, 415);
+  // The media type exactly: not one that only starts the same.
+  for (const char* type : {"application/jsonx", "application/json-patch+json", "application/js",
+                           "application/json5; charset=utf-8"}) {
+    EXPECT_EQ(post(port, "/api/label", label, type).status, 415) << type;
+  }
   EXPECT_EQ(post(port, "/api/label", label, "application/json", "Origin: http://evil.example\r\n")
                 .status,
             403);
@@ -251,7 +266,11 @@ TEST(ViewServer, HostileAndMalformedRequestsGet4xxAndTheCatalogStaysWhole) {
                  R"({"segment": )" + std::to_string(id) + R"(, "label": "object", "by": "a\u0007b"})")
                 .status,
             400);
-  for (const char* by : {R"("   ")", R"("a\u202eb")", R"("a\u0085b")", R"("a\u2028b")"}) {
+  // Names a terminal would obey or that show nothing: escapes, text-direction characters,
+  // invisible spaces only, a leading byte order mark, an empty one (it does not fall back).
+  for (const char* by :
+       {R"("   ")", R"("a\u202eb")", R"("a\u0085b")", R"("a\u2028b")", R"("a\u001b[2Jb")",
+        R"("\u200f")", R"("\u200b\u00a0\u3000")", R"("\ufeffana")", R"("")", R"(42)"}) {
     EXPECT_EQ(post(port, "/api/label",
                    R"({"segment": )" + std::to_string(id) + R"(, "label": "object", "by": )" + by +
                        "}")
@@ -311,7 +330,9 @@ TEST(ViewServer, HostileAndMalformedRequestsGet4xxAndTheCatalogStaysWhole) {
   }
   EXPECT_TRUE(catalogLabels(dir / "cat.sqlite").empty()) << "no refused request stored a label";
 
-  // A good one is stored, with who and when.
+  // A good one is stored, with who and when; parameters and the case of the type do not matter.
+  EXPECT_EQ(post(port, "/api/label", "[1]", "Application/JSON ; charset=utf-8").status, 400)
+      << "past the type check";
   const Answer stored = post(port, "/api/label", label);
   ASSERT_EQ(stored.status, 200) << stored.body;
   EXPECT_EQ(jsonOf(stored)["by"], "tester");
@@ -444,6 +465,28 @@ TEST(ViewServer, SeveralScenesOfOneDiscoverRunAreEachShownAndLabelledApart) {
   EXPECT_EQ(jsonOf(get(port, "/api/scenes/0/labels"))["progress"]["labelled"], 0);
   view->signal(SIGINT);
   EXPECT_EQ(view->wait(10), 0);
+}
+
+TEST(ViewServer, LabellerNamesThatAreNotNamesAreOneErrorLineAndNeverPrinted) {
+  TempDir dir;  // the name is checked before the folder is read: no results needed
+  const auto refused = [&](const std::vector<std::string>& env, const std::string& labeller,
+                           const std::string& from) {
+    std::vector<std::string> args = {OBJSCAN_EXE, "view", dir.path().string(), "--serve", "0"};
+    if (!labeller.empty()) args.insert(args.end(), {"--labeller", labeller});
+    testing::ProcessOptions options;
+    options.env = env;
+    const ProcessResult r = testing::runProcess(args, options);
+    testing::expectOneErrorLine(r, 2, from + ": not a labeller's name");
+    EXPECT_EQ(r.err.find('\x1b'), std::string::npos) << "no escape reaches the terminal";
+    EXPECT_EQ(r.err.find("\u202e"), std::string::npos);
+  };
+  refused({}, "a\x1b[31mred", "--labeller");
+  refused({}, "\u202eevil", "--labeller");
+  refused({}, "\u200b\u200b", "--labeller");
+  refused({}, "\ufeffana", "--labeller");
+  refused({"OBJSCAN_LABELLER=ana\x1b]0;title\x07"}, "", "$OBJSCAN_LABELLER");
+  refused({"OBJSCAN_LABELLER=\u2066x\u2069"}, "", "$OBJSCAN_LABELLER");
+  refused({"OBJSCAN_LABELLER=\u00a0\u3000"}, "", "$OBJSCAN_LABELLER");
 }
 
 TEST(ViewServer, FoldersWithoutResultsOrWithDamagedFilesSayWhat) {

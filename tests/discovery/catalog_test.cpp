@@ -2,14 +2,19 @@
 // and every kind of file that is not a catalog of this objscan. Files that other programs would
 // make (a foreign database, a newer schema) are made here through SQLite's C API directly.
 
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <sqlite3.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <bit>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
+#include <future>
 #include <limits>
 #include <map>
 #include <optional>
@@ -321,9 +326,14 @@ TEST(Catalog, TextInANumericColumnAndNegativeExtentsAreADamagedCatalog) {
     expectInputError([&] { catalog.recurrenceEntries(); }, file,
                      "damaged: column 'compactness' holds text where a number belongs");
   }
+  // A negative extent breaks the table's CHECK: the file's check finds it when it is opened.
   sql(file,
       "UPDATE segments SET compactness = 0.5; PRAGMA ignore_check_constraints = 1; "
       "UPDATE segments SET extent_1 = -0.2 WHERE id = (SELECT max(id) FROM segments)");
+  expectInputError([&] { Catalog catalog(file); }, file,
+                   "damaged: SQLite's quick_check finds \"CHECK constraint failed in segments");
+  // An undefined one (NaN is stored as NULL, which the CHECK lets pass) is found where it is read.
+  sql(file, "UPDATE segments SET extent_1 = NULL WHERE id = (SELECT max(id) FROM segments)");
   const Catalog catalog(file);
   expectInputError([&] { catalog.segments(scene, false); }, file,
                    "has a negative or undefined extent");
@@ -363,12 +373,82 @@ TEST(Catalog, DamagedSchemaPageIsAnInputError) {
   expectInputError([&] { Catalog catalog(file); }, file, "damaged");
 }
 
-TEST(Catalog, EmptyFileBecomesANewCatalog) {
+TEST(Catalog, DamagedPageFoundByQuickCheckIsAnInputErrorAndTheFileIsLeftAlone) {
+  TempDir dir;
+  const fs::path file = dir / "catalog.sqlite";
+  {
+    Catalog catalog(file);
+    std::vector<CatalogSegment> segments;
+    for (int i = 0; i < 40; ++i) segments.push_back(makeSegment(i, 3000));  // many pages
+    catalog.addScene(makeScene("desk", "aa"), segments);
+  }
+  // The schema page (page 1) stays whole, so the file opens as it did; the b-tree page header of
+  // the last page is garbage, which only a check of every page finds.
+  std::string bytes = readBytes(file);
+  const std::size_t page = static_cast<std::size_t>(sqlInteger(file, "PRAGMA page_size"));
+  ASSERT_GE(bytes.size(), 8 * page);
+  for (std::size_t i = bytes.size() - page; i < bytes.size() - page + 12; ++i) {
+    bytes[i] = static_cast<char>(0xa5);
+  }
+  writeBytes(file, bytes);
+  ASSERT_NE(sqlText(file, "PRAGMA quick_check"), "ok");
+  expectInputError([&] { Catalog catalog(file); }, file, "damaged: SQLite's quick_check finds");
+  EXPECT_EQ(readBytes(file), bytes);
+  EXPECT_FALSE(fs::exists(dir / "catalog.sqlite-journal"));
+}
+
+TEST(Catalog, AnEmptyFileIsNotACatalogAndIsLeftEmpty) {
   TempDir dir;
   const fs::path file = dir / "catalog.sqlite";
   writeBytes(file, "");
-  Catalog(file).addScene(makeScene("desk", "aa"), {makeSegment(0)});
-  EXPECT_EQ(Catalog(file).segmentCount(), 1u);
+  expectInputError([&] { Catalog catalog(file); }, file, "is empty (0 bytes), not a catalog");
+  EXPECT_EQ(fs::file_size(file), 0u);
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir.path()), fs::directory_iterator()), 1);
+}
+
+TEST(Catalog, DevicesAndFifosAreRefusedBeforeSqliteOpensThem) {
+  // SQLite would make /dev/null-journal (as root it can). Only where none was there before can
+  // the test tell.
+  const bool journal_before = fs::exists("/dev/null-journal");
+  expectInputError([] { Catalog catalog("/dev/null"); }, "/dev/null", "is not a regular file");
+  if (!journal_before) {
+    EXPECT_FALSE(fs::exists("/dev/null-journal"));
+  }
+  TempDir dir;
+  const fs::path fifo = dir / "catalog.fifo";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  // Guarded: opened for reading, a FIFO would wait for a writer forever.
+  auto opened = std::async(std::launch::async, [&] {
+    try {
+      Catalog catalog(fifo);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("opened");
+  });
+  if (opened.wait_for(std::chrono::seconds(10)) != std::future_status::ready) {
+    ADD_FAILURE() << "opening a FIFO as the catalog did not return";
+    const int writer = ::open(fifo.c_str(), O_WRONLY | O_NONBLOCK);  // lets it go on
+    if (writer >= 0) ::close(writer);
+  }
+  const std::string message = opened.get();
+  EXPECT_EQ(message.rfind(fifo.string() + ": is not a regular file", 0), 0u) << message;
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir.path()), fs::directory_iterator()), 1);
+}
+
+TEST(Catalog, ProcessesCreatingOneCatalogAtOnceAllOpenIt) {
+  // Created under a temporary name and linked into place: none of them meets a file another is
+  // still making (which, empty, is not a catalog).
+  TempDir dir;
+  const fs::path file = dir / "catalog.sqlite";
+  std::vector<std::future<std::size_t>> openers;
+  for (int i = 0; i < 8; ++i) {
+    openers.push_back(std::async(std::launch::async, [&] { return Catalog(file).segmentCount(); }));
+  }
+  for (auto& o : openers) EXPECT_EQ(o.get(), 0u);
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir.path()), fs::directory_iterator()), 1)
+      << "no temporary file is left";
+  EXPECT_EQ(sqlText(file, "PRAGMA quick_check"), "ok");
 }
 
 TEST(Catalog, NewerSchemaVersionIsAnInputError) {
@@ -597,6 +677,16 @@ TEST(CatalogLabels, BadLabelsUnknownIdsAndNoNameAreRefusedLeavingTheFileAlone) {
   EXPECT_THROW(catalog.setLabel(ids[1], 1, ""), std::invalid_argument);
   EXPECT_THROW(catalog.undoLabel(e.id + 1000, "ana"), std::invalid_argument);
   EXPECT_THROW(catalog.undoLabel(e.id, ""), std::invalid_argument);
+  // Names that are not names: what a terminal obeys (an escape, a text-direction override), and
+  // what shows nothing (invisible spaces only, a leading byte order mark), or is not UTF-8.
+  for (const char* by : {"a\x1b[31mb", "ana\u202e", "\u200f", "\u200b\u00a0\u3000", "\ufeffana",
+                         "a\nb", "\xc0\xaf", "a\u0085b"}) {
+    EXPECT_THROW(catalog.setLabel(ids[1], 1, by), std::invalid_argument) << by;
+    EXPECT_THROW(catalog.undoLabel(e.id, by), std::invalid_argument) << by;
+    EXPECT_FALSE(labellerNameProblem(by).empty()) << by;
+    EXPECT_EQ(labellerNameProblem(by).find(by), std::string::npos) << "the name is not quoted";
+  }
+  EXPECT_EQ(labellerNameProblem("Zoë Ångström-李"), "");
   EXPECT_THROW(catalog.setLabels(catalog.scenes()[0].id, {{ids[1], 1}, {ids[0], 7}}),
                std::invalid_argument);
   EXPECT_EQ(readBytes(file), before);
@@ -744,11 +834,13 @@ TEST(CatalogLabels, AVersion1FileIsUpgradedKeepingItsLabels) {
 
 TEST(CatalogLabels, AVersion1FileThatCannotBeUpgradedIsAnErrorAndLeftAsItWas) {
   TempDir dir;
-  // A label version 1 never allowed (its CHECK switched off): the upgrade refuses it.
+  // A label version 1 never allowed (its CHECK switched off): the check of the whole file finds
+  // it before the upgrade would.
   const fs::path damaged = dir / "damaged.sqlite";
   writeVersion1Catalog(damaged, "1, 5, NULL");
   std::string before = readBytes(damaged);
-  expectInputError([&] { Catalog catalog(damaged); }, damaged, "cannot be upgraded");
+  expectInputError([&] { Catalog catalog(damaged); }, damaged,
+                   "damaged: SQLite's quick_check finds \"CHECK constraint failed");
   EXPECT_EQ(readBytes(damaged), before);
   // A file that cannot be written (here: no byte may be written, as on a full disk).
   const fs::path full = dir / "full.sqlite";

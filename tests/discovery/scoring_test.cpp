@@ -231,6 +231,26 @@ TEST(ObjectnessModel, DamagedModelFilesNameWhatIsWrong) {
     EXPECT_NO_THROW(ObjectnessModel::load(dir / "intact.json"));
   }
   using J = nlohmann::json;
+  // A deviation below 0 turns a measure around, a tiny one blows it up; the score's sign is 1 or
+  // -1. Each is named by its key. (0 is what train writes for a measure that does not vary.)
+  for (const auto* model : {&svm, &knn, &bayes}) {
+    expectChangeRefused(
+        *model, [](J& m) { m["sd"][0] = -1.0; }, "\"sd\": the deviation of compactness is -1");
+    expectChangeRefused(
+        *model, [](J& m) { m["sd"][2] = 1e-40; }, "\"sd\": the deviation of smoothness is 1e-40");
+    expectChangeRefused(
+        *model, [](J& m) { m["sign"] = 0.5; }, "\"sign\" is 0.5; it is 1 or -1");
+    expectChangeRefused(
+        *model, [](J& m) { m["sign"] = 0; }, "\"sign\" is 0; it is 1 or -1");
+    expectChangeRefused(
+        *model, [](J& m) { m["sign"] = -3; }, "\"sign\" is -3; it is 1 or -1");
+  }
+  {
+    J unvarying = svm;
+    unvarying["sd"][0] = 0.0;
+    testing::writeBytes(dir / "unvarying.json", unvarying.dump());
+    EXPECT_NO_THROW(ObjectnessModel::load(dir / "unvarying.json"));
+  }
   expectChangeRefused(
       svm, [](J& m) { m["svm"]["alpha"].push_back(1.0); }, "one per support vector");
   expectChangeRefused(

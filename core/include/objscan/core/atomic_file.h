@@ -1,7 +1,10 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <filesystem>
+#include <limits>
+#include <string>
 #include <string_view>
 
 namespace objscan {
@@ -24,8 +27,17 @@ std::size_t removeStaleTemporaries(const std::filesystem::path& folder);
 /// the failed creation.
 int probeWritableFolder(const std::filesystem::path& folder);
 
+/// A name next to `path` that no other writer picks, of the form removeStaleTemporaries clears
+/// ("NAME.tmp-PID-N"): for a file that is made complete under it and then linked or renamed into
+/// place.
+std::filesystem::path temporarySibling(const std::filesystem::path& path);
+
 /// Reads a whole regular file into memory. Throws InputError when the path is missing, is a
-/// directory or another non-regular file, or cannot be read. An empty file is returned as "".
-std::string readWholeFile(const std::filesystem::path& path);
+/// directory or another non-regular file (a device such as /dev/zero, a FIFO, a socket: never
+/// opened, so one cannot block or stream without end), is larger than `max_bytes` (the size is
+/// looked at before anything is read, so a huge or sparse file costs no memory), or cannot be
+/// read. An empty file is returned as "".
+std::string readWholeFile(const std::filesystem::path& path,
+                          std::uintmax_t max_bytes = std::numeric_limits<std::uintmax_t>::max());
 
 }  // namespace objscan

@@ -81,6 +81,13 @@ class LabelConflict : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// Why `name` cannot name who set a label, or empty when it can: a name is 1 to 64 characters of
+/// UTF-8 with at least one visible one; no control character (C0, DEL, C1: terminal escapes
+/// included), line or paragraph separator, text-direction mark, embedding, override or isolate,
+/// byte order mark, or other invisible format character (a name of only invisible spaces has no
+/// visible one). The text never quotes the name (it may hold what a terminal obeys).
+std::string labellerNameProblem(std::string_view name);
+
 /// An SQLite catalog file. Numbers round-trip exactly (floats and doubles bit for bit, NaN as
 /// NaN; only -0 reads back as +0, as SQLite's REAL columns store it). Every write is one
 /// transaction, so a crash or an error leaves the file as it was before the call. One Catalog must
@@ -97,13 +104,17 @@ class Catalog {
   /// upgraded when opened (its labels kept, by "objscan (schema 1)").
   static constexpr int kSchemaVersion = 2;
 
-  /// Opens the catalog at `path`, or creates it (and its tables) when the file does not exist or
-  /// is empty (0 bytes: SQLite's own reading of an empty file). The folder must exist. A catalog
-  /// of schema version 1 is upgraded to 2 in one transaction (all or nothing).
-  /// Throws objscan::InputError naming the file when it is a folder, not an SQLite database or
-  /// damaged, an SQLite database without objscan's tables, or a catalog of a newer schema
-  /// version; objscan::OutputError when it cannot be created (e.g. the folder is missing) or a
-  /// version-1 file cannot be upgraded (read-only, locked too long, disk full).
+  /// Opens the catalog at `path`, or creates it (and its tables) when nothing is there: made whole
+  /// under a temporary name and linked into place, so that no other process (and no later run,
+  /// after a kill) ever finds a half-made catalog. The folder must exist. The whole file is checked
+  /// (SQLite's PRAGMA quick_check) before anything is written or read. A catalog of schema
+  /// version 1 is upgraded to 2 in one transaction (all or nothing).
+  /// Throws objscan::InputError naming the file, which is then left as it was, when it is a
+  /// folder, not a regular file (a device such as /dev/null, a FIFO), empty (0 bytes: not a
+  /// catalog, and not made one), not an SQLite database, damaged (quick_check fails), an SQLite
+  /// database without objscan's tables, or a catalog of a newer schema version;
+  /// objscan::OutputError when it cannot be created (e.g. the folder is missing) or a version-1
+  /// file cannot be upgraded (read-only, locked too long, disk full).
   explicit Catalog(const std::filesystem::path& path);
   ~Catalog();
   /// A moved-from catalog may only be assigned to or destroyed.
@@ -139,21 +150,22 @@ class Catalog {
   /// Sets the labels (1 object, 0 not, 2 unsure) of some of a scene's segments, given by segment
   /// id, by `by`, now, each recorded as an event, in one transaction. Throws
   /// std::invalid_argument, changing nothing, for a label other than 0, 1 or 2, a segment that is
-  /// not in the scene or an empty `by`.
+  /// not in the scene or a `by` that labellerNameProblem refuses.
   void setLabels(std::int64_t scene_id,
                  const std::vector<std::pair<std::int64_t, int>>& segment_labels,
                  const std::string& by = "objscan");
 
   /// Sets (or with nothing, clears) one segment's label, by `by`, now, and records the event, in
-  /// one transaction. Throws std::invalid_argument for an unknown segment, a label not 0/1/2 or an
-  /// empty `by` (nothing changed), OutputError when the write fails. Setting the label a segment
-  /// already has is recorded too.
+  /// one transaction. Throws std::invalid_argument for an unknown segment, a label not 0/1/2 or a
+  /// `by` that labellerNameProblem refuses (nothing changed), OutputError when the write fails.
+  /// Setting the label a segment already has is recorded too.
   LabelEvent setLabel(std::int64_t segment_id, std::optional<int> label, const std::string& by);
 
   /// Undoes event `event_id`: puts the segment's label back to the event's `previous`, recorded as
   /// a new event (undoes = event_id), in one transaction; throws LabelConflict (nothing changed)
   /// when the event is no longer the segment's latest (somebody changed the label since, or the
-  /// event was already undone), std::invalid_argument for an unknown event or an empty `by`.
+  /// event was already undone), std::invalid_argument for an unknown event or a `by` that
+  /// labellerNameProblem refuses.
   /// Undoing an undo puts the undone label back.
   LabelEvent undoLabel(std::int64_t event_id, const std::string& by);
 

@@ -11,7 +11,8 @@
 namespace objscan::pipeline {
 
 /// The ground-truth scene mesh that comes with a source: X.scene_gt.ply beside X.oni, or
-/// scene_gt.ply in a recording folder (objscan synth writes both); empty when there is none.
+/// scene_gt.ply in a recording folder (objscan synth writes both); empty when there is none (and
+/// for a sensor: `live` is one even where a folder of that name is at hand).
 std::filesystem::path findGroundTruth(const std::string& source);
 
 /// Checks, before any work, that `path` is a mesh whose vertices carry object ids; InputError

@@ -30,6 +30,7 @@ bool isLiveSource(const std::string& spec);
 ///   synth:<seed>[,option=value]    a synthetic scene rendered on the fly
 ///   live | live:<uri>              the first OpenNI2 sensor, or the one with that URI
 ///   virtual:<source>[?options]     objscan's virtual OpenNI2 sensor streaming <source>
+/// The sensor forms are matched first, as text: a folder named `live` is ./live.
 /// Throws InputError / std::invalid_argument for sources that cannot be opened (and for --record
 /// with a source that is not live), NoSensorError for `live` with no sensor attached.
 std::unique_ptr<capture::FrameSource> openFrameSource(const std::string& spec,

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <filesystem>
 #include <map>
 #include <optional>
@@ -86,7 +87,13 @@ Picture pictureFromPng(std::string png, const std::string& what);
 
 // ---- settings.json -----------------------------------------------------------------------------
 
+/// The largest settings.json objscan reads: one is a few kB; past this it is not one (and a huge or
+/// sparse file is refused before it is read).
+inline constexpr std::uintmax_t kMaxSettingsBytes = 1 << 20;
+
 void writeSettings(const std::filesystem::path& file, const Settings& settings);
+/// Reads a regular file of at most kMaxSettingsBytes (readWholeFile's checks: a device, a FIFO or
+/// a larger file is an InputError before anything is read).
 Settings readSettings(const std::filesystem::path& file);
 /// The same reader on the file's text (`file` names it in errors).
 Settings parseSettings(const std::string& text, const std::filesystem::path& file);
