@@ -153,8 +153,14 @@ ViewData::ViewData(const ViewSettings& settings) : settings_(settings) {
     labelling_off_ =
         "the results were made without a catalog (--no-catalog): labels live in a catalog; run "
         "discover with --catalog, or give view --catalog";
-  } else if (!fs::is_regular_file(catalog_path_, ec)) {
-    labelling_off_ = "the catalog " + catalog_path_.string() + " is missing";
+  } else if (const fs::file_status status = fs::status(catalog_path_, ec);
+             status.type() != fs::file_type::regular) {
+    // A folder, a FIFO or a device is there, not a catalog: "missing" would send one looking.
+    labelling_off_ = "the catalog " + catalog_path_.string() +
+                     (status.type() == fs::file_type::not_found ? " is missing"
+                      : status.type() == fs::file_type::directory
+                          ? " is a folder, not a catalog file"
+                          : " is not a regular file (a pipe or a device?), not a catalog");
   } else if (fs::file_size(catalog_path_, ec) == 0 || ec) {
     // SQLite would make an empty file a new catalog: not the viewer's to do.
     labelling_off_ = "the catalog " + catalog_path_.string() + " is empty";
@@ -217,8 +223,7 @@ void ViewData::loadScene(std::size_t index, ViewScene& scene) {
     }
     vertex_map = view.preview.vertex_map;
   } catch (const std::exception& e) {
-    scene.error = e.what();
-    log::warning("scene " + record.mesh + " cannot be shown: " + scene.error);
+    scene.error = e.what();  // said by runView: a warning, or the error when no scene can be shown
     return;
   }
   if (catalog_) findInCatalog(record, mesh_file, vertex_map, scene);
@@ -242,7 +247,10 @@ void ViewData::findInCatalog(const report::SceneRecord& record, const fs::path& 
     // Among the catalog's scenes of this mesh's content and size (its id noted in hypotheses.json
     // means something only in the catalog the run used), the one that holds the most of the
     // hypotheses; the noted one, then the newest, on a tie.
-    const std::string hash = discovery::contentHash(mesh_file);
+    // A copy discover wrote (a PCD view, a frame) is known to the catalog by its source's hash.
+    const std::string hash = !record.mesh_copy.empty() && !record.content_hash.empty()
+                                 ? record.content_hash
+                                 : discovery::contentHash(mesh_file);
     const bool same_catalog =
         hypotheses_.catalog && fs::path(hypotheses_.catalog->path) == catalog_path_;
     std::size_t best = 0;

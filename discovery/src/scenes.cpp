@@ -410,6 +410,7 @@ SceneDiscovery discoverScenes(std::vector<SceneInput> inputs,
     DiscoveredScene scene;
     scene.name = std::move(input.name);
     scene.mesh = std::move(input.mesh);
+    scene.content_hash = input.content_hash;
     scene.truth = std::move(input.truth);
     scene.whole_objects = std::move(input.whole_objects);
     findOrRecall(scene, input.content_hash, options, settings, catalog ? &*catalog : nullptr,

@@ -211,6 +211,34 @@ TEST(DiscoverCli, ObjectsInEveryFormatWithAPoseThatPlacesThem) {
       EXPECT_EQ(gltf["asset"]["version"], "2.0");
       EXPECT_EQ(gltf["accessors"][0]["count"], ply.positions.size());
       EXPECT_EQ(gltf["meshes"][0]["primitives"][0]["mode"], 4);
+      // glTF is Y-up: the node turns the scene's up (+z: the table is the plane z = 0, the
+      // mound rises along z) onto +Y, so the object stands in a glTF viewer as on the table.
+      const nlohmann::json& q = gltf["nodes"][0]["rotation"];
+      ASSERT_EQ(q.size(), 4u) << gltf["nodes"].dump();
+      const Eigen::Quaternionf node_rotation(q[3].get<float>(), q[0].get<float>(), q[1].get<float>(),
+                                        q[2].get<float>());
+      EXPECT_NEAR(node_rotation.norm(), 1.0f, 1e-5f);
+      EXPECT_LT((node_rotation * Eigen::Vector3f::UnitZ() - Eigen::Vector3f::UnitY()).norm(), 1e-4f);
+      // As a viewer shows it: the mound's top is the highest point along +Y, above its rim.
+      float low = INFINITY, high = -INFINITY, top_y = -INFINITY;
+      for (const Eigen::Vector3f& p : ply.positions) {
+        const float y = (node_rotation * p).y();
+        low = std::min(low, y);
+        high = std::max(high, y);
+        if (p.z() == ply.bounds().max().z()) top_y = y;
+      }
+      EXPECT_NEAR(top_y, high, 1e-5f);
+      EXPECT_NEAR(high - low, ply.bounds().sizes().z(), 1e-5f);
+    }
+    // info describes each object file objscan writes.
+    const ProcessResult info = objscan({"info", (out / "objects" / ("rank_001." + format)).string()});
+    ASSERT_EQ(info.exit_code, 0) << info.err;
+    const char* kind = format == "obj" ? "Wavefront OBJ" : format == "stl" ? "binary STL" : "binary glTF 2.0";
+    EXPECT_NE(info.out.find(std::string("mesh (") + kind), std::string::npos) << info.out;
+    EXPECT_NE(info.out.find(std::to_string(ply.triangles.size()) + " triangles"), std::string::npos)
+        << info.out;
+    if (format == "glb") {
+      EXPECT_NE(info.out.find("1.0000) (the scene's up"), std::string::npos) << info.out;
     }
   }
   expectOneErrorLine(objscan({"discover", (dir / "scene.ply").string(), "--out",
