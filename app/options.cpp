@@ -5,9 +5,11 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <iterator>
 #include <memory>
 #include <string>
+#include <system_error>
 
 #include "objscan/core/error.h"
 #include "objscan/core/intrinsics.h"
@@ -28,16 +30,32 @@ class SettingsFile : public CLI::Config {
   }
 
   std::vector<CLI::ConfigItem> from_config(std::istream& in) const override {
-    const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
     const std::string file = app_->get_config_ptr()->as<std::string>();
+    const std::vector<CLI::App*> given = app_->get_subcommands();
+    const std::string command = given.empty() ? std::string() : given.front()->get_name();
+    if (!command.empty() && command != "fuse" && command != "discover" && command != "eval" &&
+        command != "scan") {
+      // render and the others write no settings.json of their own: there is nothing to repeat.
+      throw CLI::ConfigError("objscan " + command +
+                             " takes no --config (a settings.json repeats a run of objscan "
+                             "fuse, discover, eval or scan)");
+    }
+    std::string text;
+    try {
+      text.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    } catch (const std::exception& e) {
+      // libstdc++ says "basic_filebuf::underflow error reading the file: Input/output error".
+      const std::string what = e.what();
+      const std::size_t colon = what.rfind(": ");
+      throw CLI::ConfigError(file + ": cannot be read: " +
+                             (colon == std::string::npos ? what : what.substr(colon + 2)));
+    }
     report::Settings settings;
     try {
       settings = report::parseSettings(text, file);
     } catch (const InputError& e) {
       throw CLI::ConfigError(e.what());
     }
-    const std::vector<CLI::App*> given = app_->get_subcommands();
-    const std::string command = given.empty() ? std::string() : given.front()->get_name();
     if (settings.command != command) {
       throw CLI::ConfigError(file + ": the settings of objscan " + settings.command + ", not of " +
                              (command.empty() ? std::string("no command") : command));
@@ -91,6 +109,18 @@ void addConfigOption(CLI::App& app) {
                  "A settings.json of an earlier run (OUT/settings.json), after the command: its "
                  "options become the command's defaults; flags given with it override them");
   app.config_formatter(std::make_shared<SettingsFile>(&app));
+  // CLI11 says "DIR was not readable (missing?)" for a folder; this check's line comes first.
+  app.get_config_ptr()->check(CLI::Validator(
+      [](std::string& path) -> std::string {
+        std::error_code ec;
+        if (std::filesystem::is_directory(path, ec)) {
+          return path + " is a folder: give the settings.json in it (" +
+                 (std::filesystem::path(path) / report::kSettingsFile).string() + ")";
+        }
+        if (!std::filesystem::exists(path, ec) && !ec) return path + ": no such file";
+        return {};
+      },
+      "FILE"));
 }
 
 report::Settings commandSettings(const CLI::App& sub) {

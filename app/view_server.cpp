@@ -10,9 +10,9 @@
 #include <system_error>
 #include <utility>
 
-#include <civetweb.h>
 #include <nlohmann/json.hpp>
 
+#include "http_query.h"
 #include "objscan/core/byte_writing.h"
 #include "objscan/core/error.h"
 #include "objscan/core/log.h"
@@ -435,11 +435,9 @@ HttpReply ViewServer::sceneRoute(const HttpRequest& request, const ViewScene& sc
                          (scene.label_error.empty() ? data_.labellingOff() : scene.label_error));
   }
   if (rest == "at") {
-    char value[32] = "";
-    const int n = request.query.empty() ? -1
-                                        : mg_get_var(request.query.c_str(), request.query.size(),
-                                                     "vertex", value, sizeof value);
-    const std::optional<std::int64_t> vertex = n > 0 ? wholeNumber(value) : std::nullopt;
+    const std::optional<std::string> value = queryValue(request.query, "vertex", 31);
+    const std::optional<std::int64_t> vertex =
+        value && !value->empty() ? wholeNumber(*value) : std::nullopt;
     if (!vertex || static_cast<std::uint64_t>(*vertex) >= scene.preview_vertices) {
       return jsonError(400, "give ?vertex=N, a vertex of the preview mesh (0 to " +
                                 std::to_string(scene.preview_vertices) + " - 1)");
