@@ -374,6 +374,7 @@ HttpReply ViewServer::route(const HttpRequest& request) {
                 {"hypotheses", hypotheses},
                 {"palette", palette},
                 {"labeller", data_.settings().labeller},
+                {"painted_top", report::paintedTop(data_.settings().dir)},
                 {"catalog", data_.catalogPath().string()}};
     if (!data_.cameraJson().empty()) doc["camera"] = Json::parse(data_.cameraJson());
     if (h.scoring) doc["scoring"] = {{"kind", h.scoring->kind}, {"model", h.scoring->model}};

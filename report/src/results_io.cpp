@@ -596,6 +596,15 @@ Json cameraJson(const OverviewCamera& c) {
 
 }  // namespace
 
+std::size_t paintedTop(const fs::path& dir) {
+  std::error_code ec;
+  std::size_t painted = 0;
+  while (fs::is_regular_file(dir / kRendersFolder / rankFileName(painted + 1, ".png"), ec)) {
+    ++painted;
+  }
+  return painted > 0 ? painted : kDefaultPaintedTop;
+}
+
 OverviewCamera readOverviewCamera(const fs::path& file) {
   const Json doc = json_node::parseFile(file);
   const Node top(file, doc, "");

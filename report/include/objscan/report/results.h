@@ -158,6 +158,10 @@ struct OverviewCamera {
   Intrinsics intrinsics;
 };
 
+/// How many of the best hypotheses the pictures paint (and close up) unless told otherwise
+/// (render and scan --top); the 3-D views paint as many, in the same colours.
+inline constexpr std::size_t kDefaultPaintedTop = 5;
+
 /// renders/: the pictures of the top hypotheses.
 struct Pictures {
   std::optional<Picture> overview, overview_ranks, contact_sheet;

@@ -81,6 +81,9 @@ void writePictures(const std::filesystem::path& dir, const Pictures& pictures);
 /// Reads DIR/renders/'s pictures (those present; the close-ups of `ranks`) and its camera.
 /// InputError for a file that is not a PNG, or a camera file of the wrong shape.
 Pictures readPictures(const std::filesystem::path& dir, const std::vector<std::size_t>& ranks);
+/// How many of the best hypotheses DIR's pictures paint: its close-ups (renders/rank_001.png and
+/// on, while they follow each other); kDefaultPaintedTop when it has none (not rendered yet).
+std::size_t paintedTop(const std::filesystem::path& dir);
 /// renders/overview_camera.json's reader. Throws InputError naming the file when it is missing or
 /// damaged.
 OverviewCamera readOverviewCamera(const std::filesystem::path& file);
