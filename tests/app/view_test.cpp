@@ -817,6 +817,50 @@ TEST(ViewPage, ADamagedMeshIsSaidInThePage) {
   EXPECT_EQ(view->wait(10), 0);
 }
 
+TEST(ViewPage, AGlbObjectStandsUpInThreeJsGltfLoader) {
+  // glTF is Y-up. A mound on a z-up table, exported as GLB and loaded by three.js's own glTF
+  // reader (Debian's libjs-three): its height must come out along +Y, top up.
+  TempDir dir;
+  writePly(dir / "mound.ply", testing::makeHeightField(120, 0.3f, [](float x, float y) {
+             return 0.05f * std::max(0.0f, 1.0f - (x * x + y * y) / 0.01f);
+           }));
+  const ProcessResult r = objscan({"discover", (dir / "mound.ply").string(), "--no-catalog",
+                                   "--object-format", "glb", "--out", (dir / "res").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const TriangleMesh scene = readPly(dir / "mound.ply");
+  const json first = json::parse(readWholeFile(dir / "res" / "hypotheses.json"))["hypotheses"][0];
+  float low = INFINITY, high = -INFINITY;
+  for (const std::int32_t v : first["vertices"].get<std::vector<std::int32_t>>()) {
+    low = std::min(low, scene.positions[static_cast<std::size_t>(v)].z());
+    high = std::max(high, scene.positions[static_cast<std::size_t>(v)].z());
+  }
+  ASSERT_GT(high - low, 0.01f);  // the mound's rise, in metres
+  const std::string glb = readWholeFile(dir / "res" / first["file"].get<std::string>());
+  std::string bytes;
+  for (const char c : glb) bytes += std::to_string(static_cast<unsigned char>(c)) + ",";
+  const std::string three = "/usr/share/javascript/three/";
+  testing::writeBytes(
+      dir / "page.html",
+      "<!doctype html><script src=\"" + testing::fileUrl(three + "three.min.js") +
+          "\"></script><script src=\"" +
+          testing::fileUrl(three + "examples/js/loaders/GLTFLoader.js") +
+          "\"></script><script>var GLB = new Uint8Array([" + bytes + "]);</script>");
+  testing::ChromiumPage page;
+  ASSERT_TRUE(page.ok());
+  page.navigate(testing::fileUrl(dir / "page.html"));
+  const json box = page.evaluate(R"(new Promise(function (done) {
+    new THREE.GLTFLoader().parse(GLB.buffer, '', function (gltf) {
+      gltf.scene.updateMatrixWorld(true);
+      var b = new THREE.Box3().setFromObject(gltf.scene);
+      done({min: [b.min.x, b.min.y, b.min.z], max: [b.max.x, b.max.y, b.max.z]});
+    }, function (e) { done({error: String(e)}); });
+  }))");
+  ASSERT_TRUE(box.contains("min")) << box.dump() << page.console();
+  // In three.js's world (Y up) the mound rises along +Y from its rim to its top, as on the table.
+  EXPECT_NEAR(box["min"][1].get<float>(), low, 1e-4f) << box.dump();
+  EXPECT_NEAR(box["max"][1].get<float>(), high, 1e-4f) << box.dump();
+}
+
 TEST(ViewPage, TheReportsInlineViewDrawsOfflineAndLinksTheViewerWhenServed) {
   TempDir dir;
   const fs::path res = freshCopy(dir);
