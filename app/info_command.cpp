@@ -230,7 +230,9 @@ void describeMeshFile(const fs::path& path) {
   row("vertices", fmt("%zu (normals: %s, colours: %s)%s", m.vertices, m.normals ? "yes" : "no",
                       m.colours ? "yes" : "no",
                       m.format == MeshFormat::kStl ? "; STL repeats each at every triangle" : ""));
-  row("faces", m.triangles == 0 ? std::string("0 (points)") : fmt("%zu triangles", m.triangles));
+  row("faces", m.triangles == 0 ? std::string("0 (points)")
+                                 : fmt("%zu %s", m.triangles,
+                                       m.triangles == 1 ? "triangle" : "triangles"));
   if (!m.bounds.isEmpty()) describeBounds(m.bounds);
   if (m.format == MeshFormat::kGlb) {
     if (m.node_rotation) {

@@ -367,9 +367,22 @@ TEST(Cli, InfoOnBadInputGivesOneLineAndExitTwo) {
   writeBytes(dir / "nan.ply", header + "0 0 0\nnan 0 0\n0 1 0\n3 0 1 2\n");
   expectOneLineError(objscan({"info", (dir / "nan.ply").string()}), (dir / "nan.ply").string(),
                      "non-finite position");
-  writeBytes(dir / "scene.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
-  expectOneLineError(objscan({"info", (dir / "scene.obj").string()}), (dir / "scene.obj").string(),
+  writeBytes(dir / "scene.fbx", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  expectOneLineError(objscan({"info", (dir / "scene.fbx").string()}), (dir / "scene.fbx").string(),
                      "unknown format");
+  // The object formats objscan writes are described, and a damaged one is said to be.
+  writeBytes(dir / "scene.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  const ProcessResult obj = objscan({"info", (dir / "scene.obj").string()});
+  EXPECT_EQ(obj.exit_code, 0) << obj.err;
+  EXPECT_NE(obj.out.find("vertices      3 (normals: no, colours: no)\nfaces         1 triangle\n"),
+            std::string::npos)
+      << obj.out;
+  writeBytes(dir / "noise.glb", std::string(100, 'x'));
+  expectOneLineError(objscan({"info", (dir / "noise.glb").string()}), (dir / "noise.glb").string(),
+                     "no 'glTF' magic");
+  writeBytes(dir / "cut.stl", std::string(84, '\0').replace(80, 1, "\x05"));
+  expectOneLineError(objscan({"info", (dir / "cut.stl").string()}), (dir / "cut.stl").string(),
+                     "header says 5 triangles");
   writeBytes(dir / "noise.ply", std::string("\x89PNG\r\n\x1a\n", 8) + std::string(100, 'x'));
   expectOneLineError(objscan({"info", (dir / "noise.ply").string()}), (dir / "noise.ply").string(),
                      "not a PLY file");
