@@ -856,8 +856,12 @@ TriangleMesh readSceneMesh(const fs::path& dir, const SceneRecord& scene, fs::pa
   if (mismatch) throw *mismatch;
   if (not_ply) {
     throw InputError(*not_ply,
-                     "is not a PLY file, and the results folder holds no copy of the mesh made "
-                     "from it (made by an older objscan): run objscan discover again");
+                     scene.mesh_copy.empty()
+                         ? "is not a PLY file, and the results folder holds no copy of the mesh "
+                           "made from it (made by an older objscan): run objscan discover again"
+                         : "is not a PLY file, and the copy of the mesh made from it, " +
+                               (dir / scene.mesh_copy).string() +
+                               ", is missing: run objscan discover again");
   }
   std::string list;
   for (const fs::path& place : places) {

@@ -579,11 +579,24 @@ TEST(ViewServer, ShowsAndRendersDiscoverResultsOfAPcdViewAndOfAFrame) {
     EXPECT_EQ(r.exit_code, 0) << r.err;
     EXPECT_TRUE(fs::is_regular_file(res / "renders" / "overview.png"));
   }
-  // A folder from before the copies were written: one error line, exit 2, and what to do.
+  // The copy removed: one error line naming it, exit 2, and what to do.
   fs::remove_all(dir / "pcd" / "scenes");
+  const ProcessResult removed = objscan({"render", (dir / "pcd").string()});
+  EXPECT_EQ(removed.exit_code, 2) << removed.err;
+  EXPECT_NE(removed.err.find("view.pcd: is not a PLY file, and the copy of the mesh made from it, " +
+                             (dir / "pcd" / "scenes" / "scene_001.ply").string() +
+                             ", is missing: run objscan discover again"),
+            std::string::npos)
+      << removed.err;
+  // A folder from before the copies were written: the same, saying so.
+  json before = json::parse(readWholeFile(dir / "pcd" / "hypotheses.json"));
+  before["scenes"][0].erase("mesh_copy");
+  std::ofstream(dir / "pcd" / "hypotheses.json") << before.dump();
   const ProcessResult old = objscan({"render", (dir / "pcd").string()});
   EXPECT_EQ(old.exit_code, 2) << old.err;
-  EXPECT_NE(old.err.find("view.pcd"), std::string::npos) << old.err;
+  EXPECT_NE(old.err.find("view.pcd: is not a PLY file, and the results folder holds no copy"),
+            std::string::npos)
+      << old.err;
 }
 
 #else  // OBJSCAN_VIEW_PAGE_TEST
