@@ -364,13 +364,16 @@ void printHeldOut(discovery::ScoreKind kind, const discovery::MeasureNormaliser&
                                  : "the labels are from one scene");
     return;
   }
+  const std::string ap = std::isnan(held.ap) ? std::string("unknown (no object among them)")
+                                              : std::to_string(held.ap).substr(0, 5);
+  const std::string skipped =
+      held.skipped == 0 ? std::string()
+                        : ", " + std::to_string(held.skipped) +
+                              " not held out (the others have too few of a class)";
   std::printf(
-      "held out      AP %.3f, each of %zu scenes scored by a model trained on the others "
-      "(%zu segments; scores %+.3f to %+.3f)%s\n",
-      held.ap, held.scenes, held.rows, held.min_score, held.max_score,
-      held.skipped > 0 ? (", " + std::to_string(held.skipped) + " scenes too few to leave out")
-                             .c_str()
-                       : "");
+      "held out      AP %s, each of %zu scenes scored by a model trained on the others (%zu "
+      "segments; scores %+.3f to %+.3f)%s\n",
+      ap.c_str(), held.scenes, held.rows, held.min_score, held.max_score, skipped.c_str());
 }
 
 /// Fits `kind` to the measures and labels (normalised by `normaliser`) and writes the model file.
