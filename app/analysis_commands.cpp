@@ -113,6 +113,7 @@ Command addTrainCommand(CLI::App& app) {
   train
       ->add_option("--kind", train_options.kind,
                    "naive_bayes, linear_svm, rbf_svm or nearest_neighbour")
+      ->type_name("{naive_bayes,linear_svm,rbf_svm,nearest_neighbour}")
       ->capture_default_str();
   train
       ->add_option("--min-iou", train_options.min_iou,

@@ -15,11 +15,16 @@ namespace objscan::app {
 Command addInfoCommand(CLI::App& app) {
   auto info_path = std::make_shared<std::string>();
   CLI::App* info = app.add_subcommand(
-      "info", "Print what a mesh (.ply), trajectory (TUM .txt) or recording holds");
-  info->footer("Examples:\n  objscan info session.oni\n  objscan info out/desk/mesh.ply");
+      "info",
+      "Print what a mesh, point cloud, trajectory, recording, catalog, model or results folder "
+      "holds");
+  info->footer(
+      "Examples:\n  objscan info session.oni\n  objscan info out/desk/mesh.ply\n"
+      "  objscan info out/desk\n  objscan info ~/.local/share/objscan/catalog.sqlite");
   info->add_option("path", *info_path,
-                   "A .ply mesh, a TUM trajectory .txt, an .oni recording, or a TUM or 7-Scenes "
-                   "recording folder")
+                   "A mesh (.ply, .obj, .stl, .glb), a PCD view, a TUM trajectory .txt, an .oni "
+                   "recording, a TUM or 7-Scenes recording folder, a catalog, a model (.json) or "
+                   "a results folder")
       ->required();
   return {info, [info_path] {
             runInfo(*info_path);

@@ -325,6 +325,57 @@ int runEval(const EvalCommandOptions& options) {
 
 namespace {
 
+/// Below this many labelled segments of either class, train warns that its figures cannot be
+/// trusted: each of the 5 folds then tests on fewer than 6 of that class, so one segment moves a
+/// fold's AP by more than 0.15, and the grid search picks its parameters on those same folds, so
+/// the cross-validated AP it reports flatters the model.
+constexpr std::size_t kTrustedLabelsPerClass = 30;
+
+/// Warns when the labels are too few to trust the model (kTrustedLabelsPerClass, one scene).
+void warnIfTooFew(std::size_t objects, std::size_t not_objects, std::size_t scenes) {
+  if (objects < kTrustedLabelsPerClass || not_objects < kTrustedLabelsPerClass) {
+    log::warning("too few labels to trust this model: " + std::to_string(objects) +
+                 " objects and " + std::to_string(not_objects) + " not objects, below " +
+                 std::to_string(kTrustedLabelsPerClass) +
+                 " of each (each cross-validation fold then tests on a handful, and the "
+                 "parameters are chosen on the same folds, so the AP below flatters it): label "
+                 "more, and compare it with the average score (discover without --model)");
+  }
+  if (scenes < 2) {
+    log::warning(
+        "all labels are from one scene: the cross-validated AP measures the model on the scene "
+        "it was trained on, not on another; label segments of other scenes too");
+  }
+}
+
+/// Leave-one-scene-out: what the model does on scenes it was not trained on, as discover uses it.
+void printHeldOut(discovery::ScoreKind kind, const discovery::MeasureNormaliser& normaliser,
+                  const std::vector<discovery::ShapeMeasures>& measures,
+                  const std::vector<int>& labels, const std::vector<std::size_t>& scene_of,
+                  const discovery::TrainConfig& config) {
+  if (kind == discovery::ScoreKind::kAverage) return;
+  std::vector<discovery::MeasureRow> rows;
+  for (const discovery::ShapeMeasures& m : measures) rows.push_back(normaliser.normalise(m));
+  const discovery::HeldOutScenes held = discovery::leaveOneSceneOut(
+      kind, normaliser, rows, labels, scene_of, discovery::kAllMeasures, config);
+  if (held.scenes == 0) {
+    std::printf("held out      not measured: %s\n",
+                held.skipped > 0 ? "no scene leaves enough labels of each class in the others"
+                                 : "the labels are from one scene");
+    return;
+  }
+  const std::string ap = std::isnan(held.ap) ? std::string("unknown (no object among them)")
+                                              : std::to_string(held.ap).substr(0, 5);
+  const std::string skipped =
+      held.skipped == 0 ? std::string()
+                        : ", " + std::to_string(held.skipped) +
+                              " not held out (the others have too few of a class)";
+  std::printf(
+      "held out      AP %s, each of %zu scenes scored by a model trained on the others (%zu "
+      "segments; scores %+.3f to %+.3f)%s\n",
+      ap.c_str(), held.scenes, held.rows, held.min_score, held.max_score, skipped.c_str());
+}
+
 /// Fits `kind` to the measures and labels (normalised by `normaliser`) and writes the model file.
 discovery::ObjectnessModel fitAndSave(const TrainCommandOptions& options, discovery::ScoreKind kind,
                                       const discovery::MeasureNormaliser& normaliser,
@@ -381,6 +432,8 @@ int trainOnCatalogLabels(const TrainCommandOptions& options, discovery::ScoreKin
   std::printf("trained       %s on %zu labelled segments\n", discovery::toString(kind),
               set.labels.size());
   printChosen(options, model);
+  printHeldOut(kind, set.normaliser, set.measures, set.labels, set.scene_of, config);
+  warnIfTooFew(objects, not_objects, set.scenes);
   return kExitSuccess;
 }
 
@@ -397,11 +450,13 @@ int runTrain(const TrainCommandOptions& options) {
   config.seed = options.seed;
   const discovery::ObjectnessModel model =
       fitAndSave(options, kind, set.normaliser, segs.measures, labels, config);
-  const auto objects = std::count(labels.begin(), labels.end(), 1);
-  std::printf("trained       %s on %zu segments of %zu scenes (%td objects at IoU >= %.1f)\n",
+  const auto objects = static_cast<std::size_t>(std::count(labels.begin(), labels.end(), 1));
+  std::printf("trained       %s on %zu segments of %zu scenes (%zu objects at IoU >= %.1f)\n",
               discovery::toString(kind), labels.size(), set.scenes.size(), objects,
               options.min_iou);
   printChosen(options, model);
+  printHeldOut(kind, set.normaliser, segs.measures, labels, segs.scene, config);
+  warnIfTooFew(objects, labels.size() - objects, set.scenes.size());
   return kExitSuccess;
 }
 

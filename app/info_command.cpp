@@ -16,9 +16,15 @@
 #include "objscan/capture/tum_folder.h"
 #include "objscan/core/error.h"
 #include "objscan/core/file_names.h"
+#include "objscan/core/mesh_formats.h"
+#include "objscan/core/organized_cloud.h"
 #include "objscan/core/ply_io.h"
 #include "objscan/core/progress.h"
 #include "objscan/core/trajectory.h"
+#include "objscan/discovery/catalog.h"
+#include "objscan/discovery/scoring.h"
+#include "objscan/discovery/shape_measures.h"
+#include "objscan/report/results_io.h"
 
 namespace objscan::app {
 namespace fs = std::filesystem;
@@ -190,6 +196,56 @@ void describeTumFolder(const fs::path& path) {
   }
 }
 
+void describePcd(const fs::path& path) {
+  const OrganizedCloud cloud = readPcd(path);
+  row("file", path.string());
+  row("type", fmt("point cloud (PCD, %s): discover meshes its pixel grid into a scene",
+                  bytesText(fs::file_size(path)).c_str()));
+  row("points", fmt("%zu, %s (%d x %d), %zu with a reading; colours: %s",
+                    cloud.points_C.size(), cloud.organized() ? "organized" : "unorganized",
+                    cloud.width, cloud.height, cloud.validCount(),
+                    cloud.colors.empty() ? "no" : "yes"));
+  if (!cloud.labels.empty()) {
+    std::set<std::int32_t> objects;
+    for (const std::uint32_t l : cloud.labels) {
+      if (const std::int32_t id = objectIdOfLabel(l, true); id > 0) objects.insert(id);
+    }
+    row("labels", fmt("%zu objects (label field: 0 none, 1..9 surfaces, 10 k + p part p of "
+                      "object k)", objects.size()));
+  }
+  Eigen::AlignedBox3f box;
+  for (std::size_t i = 0; i < cloud.points_C.size(); ++i) {
+    if (cloud.valid(i)) box.extend(cloud.points_C[i]);
+  }
+  if (!box.isEmpty()) describeBounds(box);
+}
+
+/// An object file objscan writes (--object-format obj, stl or glb).
+void describeMeshFile(const fs::path& path) {
+  const MeshFileSummary m = summarizeMeshFile(path);
+  const char* kinds[] = {"PLY", "Wavefront OBJ", "binary STL", "binary glTF 2.0"};
+  row("file", path.string());
+  row("type", fmt("mesh (%s, %s)", kinds[static_cast<int>(m.format)],
+                  bytesText(fs::file_size(path)).c_str()));
+  row("vertices", fmt("%zu (normals: %s, colours: %s)%s", m.vertices, m.normals ? "yes" : "no",
+                      m.colours ? "yes" : "no",
+                      m.format == MeshFormat::kStl ? "; STL repeats each at every triangle" : ""));
+  row("faces", m.triangles == 0 ? std::string("0 (points)")
+                                 : fmt("%zu %s", m.triangles,
+                                       m.triangles == 1 ? "triangle" : "triangles"));
+  if (!m.bounds.isEmpty()) describeBounds(m.bounds);
+  if (m.format == MeshFormat::kGlb) {
+    if (m.node_rotation) {
+      // glTF is Y-up: the node turns the scene's up (as objscan found it) onto +Y.
+      const Eigen::Vector3f up = m.node_rotation->conjugate() * Eigen::Vector3f::UnitY();
+      row("up", "the node turns " + vec(up) + " (the scene's up, in the file's coordinates) "
+                "onto glTF's +Y");
+    } else {
+      row("up", "no node rotation: +Y of the coordinates is up in a glTF viewer");
+    }
+  }
+}
+
 bool startsWith(const fs::path& path, std::string_view magic) {
   std::ifstream in(path, std::ios::binary);
   std::string head(magic.size(), '\0');
@@ -198,6 +254,89 @@ bool startsWith(const fs::path& path, std::string_view magic) {
 }
 
 }  // namespace
+
+/// An objscan catalog (SQLite): its scenes, segments and labels.
+static void describeCatalog(const fs::path& path) {
+  const discovery::Catalog catalog(path);
+  const std::vector<discovery::CatalogScene> scenes = catalog.scenes();
+  discovery::LabelCounts labels;
+  std::set<std::string> settings;
+  for (const discovery::CatalogScene& s : scenes) {
+    const discovery::LabelCounts c = catalog.labelCounts(s.id);
+    labels.labelled += c.labelled;
+    labels.objects += c.objects;
+    labels.not_objects += c.not_objects;
+    labels.unsure += c.unsure;
+    settings.insert(s.settings);
+  }
+  row("file", path.string());
+  row("type", fmt("catalog (objscan, SQLite, schema %d, %s)", discovery::Catalog::kSchemaVersion,
+                  bytesText(fs::file_size(path)).c_str()));
+  row("scenes", fmt("%zu (measured with %zu %s of discovery settings)", scenes.size(),
+                    settings.size(), settings.size() == 1 ? "set" : "sets"));
+  row("segments", fmt("%zu", catalog.segmentCount()));
+  row("labels", fmt("%zu: %zu object, %zu not, %zu unsure (objscan view; objscan train uses them)",
+                    labels.labelled, labels.objects, labels.not_objects, labels.unsure));
+  for (std::size_t i = 0; i < std::min<std::size_t>(scenes.size(), 10); ++i) {
+    row(i == 0 ? "scene" : "", fmt("#%lld %s, %zu vertices", static_cast<long long>(scenes[i].id),
+                                   scenes[i].name.c_str(), scenes[i].vertex_count));
+  }
+  if (scenes.size() > 10) row("", fmt("... and %zu more", scenes.size() - 10));
+}
+
+/// A model file of objscan train.
+static void describeModel(const fs::path& path) {
+  const discovery::ObjectnessModel model = discovery::ObjectnessModel::load(path);
+  std::vector<std::string> measures;
+  for (std::size_t i = 0; i < discovery::kMeasureCount; ++i) {
+    if (model.mask()[i]) measures.emplace_back(discovery::kMeasureNames[i]);
+  }
+  row("file", path.string());
+  row("type", fmt("objectness model (objscan train: discover --model %s)", path.c_str()));
+  row("kind", std::string(discovery::toString(model.kind())) +
+                  (model.parameters().empty() ? "" : " (" + model.parameters() + ")"));
+  row("measures", joined(measures));
+  const double ap = model.crossValidatedAp();
+  row("trained", std::isnan(ap) ? std::string("no (the average)")
+                                 : fmt("cross-validated AP %.3f on its training segments", ap));
+}
+
+/// A results folder of scan or discover (hypotheses.json), and eval's or render's additions.
+static void describeResults(const fs::path& dir) {
+  report::ResultsParts parts;
+  parts.pictures = false;
+  const report::ScanResults r = report::readResults(dir, parts);
+  const report::Hypotheses& h = *r.hypotheses;
+  row("file", dir.string());
+  row("type", "results folder (objscan scan or discover; objscan view and render show it)");
+  row("scenes", std::to_string(h.scenes.size()));
+  for (std::size_t i = 0; i < std::min<std::size_t>(h.scenes.size(), 10); ++i) {
+    const report::SceneRecord& s = h.scenes[i];
+    row(i == 0 ? "scene" : "",
+        s.mesh + (s.vertices ? fmt(", %zu vertices", *s.vertices) : std::string()) +
+            (s.mesh_copy.empty() ? "" : " (its mesh: " + s.mesh_copy + ")"));
+  }
+  if (h.scenes.size() > 10) row("", fmt("... and %zu more", h.scenes.size() - 10));
+  row("hypotheses", std::to_string(h.hypotheses.size()));
+  if (h.scoring) {
+    row("scored by", h.scoring->kind + (h.scoring->model.empty() ? "" : " (" + h.scoring->model + ")") +
+                         (h.scoring->normalised_over.empty() ? "" : ", normalised over " + h.scoring->normalised_over));
+  }
+  row("catalog", h.catalog ? h.catalog->path : std::string("none"));
+  if (r.evaluation) {
+    row("evaluation", fmt("AP %.3f, %zu of %zu objects found (IoU >= %.2f)", r.evaluation->ap,
+                          r.evaluation->found.value_or(0), r.evaluation->objects.value_or(0),
+                          r.evaluation->min_iou));
+  }
+  std::vector<std::string> present;
+  std::error_code ec;
+  for (const char* name : {report::kMeshFile, report::kTrajectoryFile, report::kObjectsFolder,
+                           report::kScenesFolder, report::kRendersFolder, report::kReportFile,
+                           report::kTimingsFile, report::kSettingsFile, report::kEvaluationFile}) {
+    if (fs::exists(dir / name, ec)) present.emplace_back(name);
+  }
+  row("holds", joined(present));
+}
 
 /// A 7-Scenes folder, as fuse reads it.
 static void describeSevenScenesFolder(const fs::path& path) {
@@ -247,15 +386,19 @@ void runInfo(const fs::path& path) {
     throw InputError(path, "no such file or directory");
   if (ec) throw InputError(path, "cannot access: " + ec.message());
   if (status.type() == fs::file_type::directory) {
+    if (fs::exists(path / report::kHypothesesFile, ec)) {
+      describeResults(path);
+      return;
+    }
     if (capture::SevenScenesFolder::looksLikeSevenScenesFolder(path)) {
       describeSevenScenesFolder(path);
       return;
     }
     if (!capture::TumFolder::looksLikeTumFolder(path)) {
       throw InputError(path,
-                       "is a directory, not a mesh, trajectory, TUM-format or 7-Scenes recording "
-                       "(a recording folder has depth.txt or associations.txt, or "
-                       "frame-NNNNNN.depth.png files)");
+                       "is a directory, not a results folder (hypotheses.json), a TUM-format or a "
+                       "7-Scenes recording (a recording folder has depth.txt or associations.txt, "
+                       "or frame-NNNNNN.depth.png files)");
     }
     describeTumFolder(path);
     return;
@@ -270,10 +413,21 @@ void runInfo(const fs::path& path) {
     describeOni(path);
   } else if (ext == ".txt") {
     describeTrajectory(path);
+  } else if (ext == ".pcd") {
+    describePcd(path);
+  } else if (ext == ".obj" || ext == ".stl" || ext == ".glb") {
+    describeMeshFile(path);
+  } else if (startsWith(path, std::string_view("SQLite format 3\0", 16))) {
+    describeCatalog(path);
+  } else if (path.filename() == report::kHypothesesFile) {
+    describeResults(path.parent_path().empty() ? fs::path(".") : path.parent_path());
+  } else if (ext == ".json" || startsWith(path, "{")) {
+    describeModel(path);  // JSON, whatever its name (objscan train --model m.yml writes JSON)
   } else {
     throw InputError(path,
-                     "unknown format: expected a .ply mesh, a .txt TUM trajectory, a .oni "
-                     "recording or a TUM-format recording folder");
+                     "unknown format: expected a .ply, .pcd, .obj, .stl or .glb mesh, a .txt TUM "
+                     "trajectory, a .oni recording, a catalog (SQLite), a model (.json), a results "
+                     "folder or a TUM-format or 7-Scenes recording folder");
   }
 }
 

@@ -7,8 +7,7 @@
 #include <string_view>
 #include <system_error>
 
-#include <civetweb.h>
-
+#include "http_query.h"
 #include "live_page.h"  // generated from live_page.html: kLivePage
 
 namespace objscan::app {
@@ -20,12 +19,12 @@ namespace fs = std::filesystem;
 constexpr std::chrono::milliseconds kLongPoll{1000};
 
 std::uint64_t afterOf(const std::string& query) {
-  if (query.empty()) return 0;
-  char value[32];
-  if (mg_get_var(query.c_str(), query.size(), "after", value, sizeof value) <= 0) return 0;
+  const std::optional<std::string> value = queryValue(query, "after", 31);
+  if (!value || value->empty()) return 0;
   std::uint64_t after = 0;
-  const auto [end, ec] = std::from_chars(value, value + std::strlen(value), after);
-  return ec == std::errc() && *end == '\0' ? after : 0;
+  const char* last = value->data() + value->size();
+  const auto [end, ec] = std::from_chars(value->data(), last, after);
+  return ec == std::errc() && end == last ? after : 0;
 }
 
 }  // namespace

@@ -10,6 +10,7 @@
 #include <memory>
 #include <set>
 #include <string>
+#include <system_error>
 
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/error.h"
@@ -35,14 +36,21 @@ class SettingsFile : public CLI::Config {
     // would take /dev/zero to the end of memory); settingsFileCheck has refused what is no
     // regular file before CLI11 opened it.
     const std::string file = app_->get_config_ptr()->as<std::string>();
+    const std::vector<CLI::App*> given = app_->get_subcommands();
+    const std::string command = given.empty() ? std::string() : given.front()->get_name();
+    if (!command.empty() && command != "fuse" && command != "discover" && command != "eval" &&
+        command != "scan") {
+      // render and the others write no settings.json of their own: there is nothing to repeat.
+      throw CLI::ConfigError("objscan " + command +
+                             " takes no --config (a settings.json repeats a run of objscan "
+                             "fuse, discover, eval or scan)");
+    }
     report::Settings settings;
     try {
       settings = report::readSettings(file);
     } catch (const InputError& e) {
       throw CLI::ConfigError(e.what());
     }
-    const std::vector<CLI::App*> given = app_->get_subcommands();
-    const std::string command = given.empty() ? std::string() : given.front()->get_name();
     if (settings.command != command) {
       throw CLI::ConfigError(file + ": the settings of objscan " + settings.command + ", not of " +
                              (command.empty() ? std::string("no command") : command));
@@ -120,6 +128,13 @@ std::string absolutePath(const std::string& value) {
 /// a writer forever.
 const CLI::Validator settingsFileCheck(
     [](std::string& path) -> std::string {
+      // CLI11 would say "DIR was not readable (missing?)" for a folder.
+      std::error_code ec;
+      if (std::filesystem::is_directory(path, ec)) {
+        return path + " is a folder: give the settings.json in it (" +
+               (std::filesystem::path(path) / report::kSettingsFile).string() + ")";
+      }
+      if (!std::filesystem::exists(path, ec) && !ec) return path + ": no such file";
       try {
         (void)readWholeFile(path, report::kMaxSettingsBytes);
       } catch (const InputError& e) {

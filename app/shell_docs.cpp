@@ -1,6 +1,7 @@
 #include "shell_docs.h"
 
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace objscan::app {
@@ -18,6 +19,25 @@ std::string optionWords(const CLI::App& command) {
     for (const std::string& name : option->get_snames()) words += " -" + name;
   }
   return words.empty() ? words : words.substr(1);
+}
+
+/// The values an option takes when it takes one of a few ("ply obj stl glb"): the "{a,b,c}" in
+/// its type name, which CLI::IsMember (or a type_name listing them) puts there; "" otherwise.
+std::string choiceWords(const CLI::Option& option) {
+  const std::string type = option.get_type_name();
+  const std::size_t open = type.find('{'), close = type.find('}', open);
+  if (open == std::string::npos || close == std::string::npos) return {};
+  std::string words = type.substr(open + 1, close - open - 1);
+  for (char& c : words) c = c == ',' ? ' ' : c;
+  return words;
+}
+
+/// Whether `command` reads a <source> (a recording, a folder, synth:, live, virtual:).
+bool takesSource(const CLI::App& command) {
+  for (const CLI::Option* option : command.get_options()) {
+    if (option->get_positional() && option->get_name() == "source") return true;
+  }
+  return false;
 }
 
 /// Text made safe for roff: backslashes doubled, a leading dot or quote escaped, dashes of
@@ -60,12 +80,43 @@ std::string bashCompletion(const CLI::App& app) {
   for (const CLI::App* command : commandsOf(app)) {
     script += "    " + command->get_name() + ") words=\"" + optionWords(*command) + "\" ;;\n";
   }
+  // An option of a few values completes to those values, not to file names.
   script +=
       "  esac\n"
-      "  if [[ -z $command || $cur == -* ]]; then\n"
+      "  local choices=\n"
+      "  case $command:${COMP_WORDS[COMP_CWORD-1]} in\n";
+  for (const CLI::Option* option : app.get_options()) {
+    if (const std::string choices = choiceWords(*option); !choices.empty()) {
+      for (const std::string& name : option->get_lnames()) {
+        script += "    :--" + name + ") choices=\"" + choices + "\" ;;\n";
+      }
+    }
+  }
+  std::string sources;
+  for (const CLI::App* command : commandsOf(app)) {
+    if (takesSource(*command)) sources += (sources.empty() ? "" : "|") + command->get_name();
+    for (const CLI::Option* option : command->get_options()) {
+      const std::string choices = choiceWords(*option);
+      if (choices.empty() || option->get_positional()) continue;
+      for (const std::string& name : option->get_lnames()) {
+        script += "    " + command->get_name() + ":--" + name + ") choices=\"" + choices + "\" ;;\n";
+      }
+    }
+  }
+  script +=
+      "  esac\n"
+      "  if [[ -n $choices ]]; then\n"
+      "    COMPREPLY=($(compgen -W \"$choices\" -- \"$cur\"))\n"
+      "  elif [[ -z $command || $cur == -* ]]; then\n"
       "    COMPREPLY=($(compgen -W \"$words\" -- \"$cur\"))\n"
       "  else\n"
-      "    COMPREPLY=($(compgen -f -- \"$cur\"))\n"
+      "    COMPREPLY=($(compgen -f -- \"$cur\"))\n";
+  if (!sources.empty()) {
+    // The sources that are not files: a synthetic scene, the first sensor, a virtual sensor.
+    script += "    case $command in " + sources +
+              ") COMPREPLY+=($(compgen -W \"synth: live virtual:\" -- \"$cur\")) ;; esac\n";
+  }
+  script +=
       "  fi\n"
       "}\n"
       "complete -o filenames -F _objscan objscan\n";
@@ -104,12 +155,29 @@ std::string manPage(const CLI::App& app, const std::string& version) {
     }
   }
   page += ".SH EXIT STATUS\n.nf\n" + roff(app.get_footer()) + "\n.fi\n";
-  page +=
-      ".SH ENVIRONMENT\n.TP\n\\fBOBJSCAN_CATALOG\\fR\nThe catalog file (default "
-      "~/.local/share/objscan/catalog.sqlite).\n.TP\n\\fBOBJSCAN_MEMORY_LIMIT\\fR\nThe memory "
-      "objscan may use, in bytes (2G, 500M); replaces what the machine reports.\n.TP\n"
-      "\\fBOBJSCAN_VIRTUAL_SENSOR\\fR\nA virtual:... URI that objscan devices lists and live "
-      "capture opens as the first sensor.\n";
+  // Every variable objscan reads (grep getenv): a man page is where a user looks for them.
+  static constexpr std::pair<const char*, const char*> kEnvironment[] = {
+      {"OBJSCAN_CATALOG",
+       "The catalog file discover, scan and train use when --catalog is not given (default "
+       "$XDG_DATA_HOME/objscan/catalog.sqlite, else ~/.local/share/objscan/catalog.sqlite)."},
+      {"OBJSCAN_LABELLER",
+       "The name objscan view stores with each label when --labeller is not given (else $USER, "
+       "else $LOGNAME)."},
+      {"OBJSCAN_MEMORY_LIMIT",
+       "The memory objscan may use, in bytes (2G, 500M); replaces what the machine reports."},
+      {"OBJSCAN_VIRTUAL_SENSOR",
+       "A virtual:... URI that objscan devices lists and live capture opens as the first "
+       "sensor."},
+      {"XDG_DATA_HOME, HOME", "Where the default catalog is (see OBJSCAN_CATALOG)."},
+      {"USER, LOGNAME", "The labeller's name when neither --labeller nor OBJSCAN_LABELLER is set."},
+      {"TMPDIR",
+       "Where objscan makes a short path for OpenNI2 when a recording's path is one OpenNI2 "
+       "cannot take (else /tmp)."},
+  };
+  page += ".SH ENVIRONMENT\n";
+  for (const auto& [name, text] : kEnvironment) {
+    page += ".TP\n\\fB" + roff(name) + "\\fR\n" + roff(text) + "\n";
+  }
   page +=
       ".SH SEE ALSO\nThe documentation in docs/ of objscan's source: capture, fusion, "
       "discovery, file formats.\n";

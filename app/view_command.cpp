@@ -118,19 +118,30 @@ int runView(const ViewCommandOptions& options) {
   std::fflush(stdout);
 
   data.loadScenes();
-  std::size_t shown = 0, labelled = 0;
+  std::size_t shown = 0, labellable = 0;
+  const ViewScene* first_failure = nullptr;
   for (const ViewScene& s : data.scenes()) {
     shown += s.error.empty() ? 1 : 0;
-    labelled += s.catalog_scene ? 1 : 0;
+    labellable += s.catalog_scene ? 1 : 0;
+    if (!s.error.empty() && !first_failure) first_failure = &s;
   }
-  std::printf("scenes        %zu (%zu can be shown, %zu labelled), %zu hypotheses\n",
-              data.scenes().size(), shown, labelled, data.hypotheses().hypotheses.size());
-  if (labelled > 0) {
+  if (shown == 0) {
+    // Nothing to serve: one error line and exit 2, not an empty page and exit 0.
+    const std::string reason = first_failure ? first_failure->error : "hypotheses.json lists none";
+    throw InputError(options.dir, "no scene can be shown: " + reason +
+                                      (data.scenes().size() > 1 ? " (and the others)" : ""));
+  }
+  for (const ViewScene& s : data.scenes()) {
+    if (!s.error.empty()) log::warning("scene " + s.name + " cannot be shown: " + s.error);
+  }
+  // Scenes the catalog holds can be labelled; how many labels they have the page says.
+  std::printf("scenes        %zu (%zu can be shown, %zu can be labelled), %zu hypotheses\n",
+              data.scenes().size(), shown, labellable, data.hypotheses().hypotheses.size());
+  if (labellable > 0) {
     std::printf("labels        into %s, as %s\n", data.catalogPath().c_str(),
                 settings.labeller.c_str());
   }
   std::fflush(stdout);
-  if (shown == 0) log::warning("no scene of " + options.dir.string() + " can be shown (see above)");
 
   StopSignals::waitForStop(options.wait_s);
   return kExitSuccess;  // Ctrl-C is how a viewer ends

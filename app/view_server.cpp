@@ -10,9 +10,9 @@
 #include <system_error>
 #include <utility>
 
-#include <civetweb.h>
 #include <nlohmann/json.hpp>
 
+#include "http_query.h"
 #include "objscan/core/byte_writing.h"
 #include "objscan/core/error.h"
 #include "objscan/core/log.h"
@@ -139,8 +139,14 @@ ViewData::ViewData(const ViewSettings& settings) : settings_(settings) {
     labelling_off_ =
         "the results were made without a catalog (--no-catalog): labels live in a catalog; run "
         "discover with --catalog, or give view --catalog";
-  } else if (!fs::is_regular_file(catalog_path_, ec)) {
-    labelling_off_ = "the catalog " + catalog_path_.string() + " is missing";
+  } else if (const fs::file_status status = fs::status(catalog_path_, ec);
+             status.type() != fs::file_type::regular) {
+    // A folder, a FIFO or a device is there, not a catalog: "missing" would send one looking.
+    labelling_off_ = "the catalog " + catalog_path_.string() +
+                     (status.type() == fs::file_type::not_found ? " is missing"
+                      : status.type() == fs::file_type::directory
+                          ? " is a folder, not a catalog file"
+                          : " is not a regular file (a pipe or a device?), not a catalog");
   } else if (fs::file_size(catalog_path_, ec) == 0 || ec) {
     // SQLite would make an empty file a new catalog: not the viewer's to do.
     labelling_off_ = "the catalog " + catalog_path_.string() + " is empty";
@@ -203,8 +209,7 @@ void ViewData::loadScene(std::size_t index, ViewScene& scene) {
     }
     vertex_map = view.preview.vertex_map;
   } catch (const std::exception& e) {
-    scene.error = e.what();
-    log::warning("scene " + record.mesh + " cannot be shown: " + scene.error);
+    scene.error = e.what();  // said by runView: a warning, or the error when no scene can be shown
     return;
   }
   if (catalog_) findInCatalog(record, mesh_file, vertex_map, scene);
@@ -228,7 +233,10 @@ void ViewData::findInCatalog(const report::SceneRecord& record, const fs::path& 
     // Among the catalog's scenes of this mesh's content and size (its id noted in hypotheses.json
     // means something only in the catalog the run used), the one that holds the most of the
     // hypotheses; the noted one, then the newest, on a tie.
-    const std::string hash = discovery::contentHash(mesh_file);
+    // A copy discover wrote (a PCD view, a frame) is known to the catalog by its source's hash.
+    const std::string hash = !record.mesh_copy.empty() && !record.content_hash.empty()
+                                 ? record.content_hash
+                                 : discovery::contentHash(mesh_file);
     const bool same_catalog =
         hypotheses_.catalog && fs::path(hypotheses_.catalog->path) == catalog_path_;
     std::size_t best = 0;
@@ -352,6 +360,7 @@ HttpReply ViewServer::route(const HttpRequest& request) {
                 {"hypotheses", hypotheses},
                 {"palette", palette},
                 {"labeller", data_.settings().labeller},
+                {"painted_top", report::paintedTop(data_.settings().dir)},
                 {"catalog", data_.catalogPath().string()}};
     if (!data_.cameraJson().empty()) doc["camera"] = Json::parse(data_.cameraJson());
     if (h.scoring) doc["scoring"] = {{"kind", h.scoring->kind}, {"model", h.scoring->model}};
@@ -413,11 +422,9 @@ HttpReply ViewServer::sceneRoute(const HttpRequest& request, const ViewScene& sc
                          (scene.label_error.empty() ? data_.labellingOff() : scene.label_error));
   }
   if (rest == "at") {
-    char value[32] = "";
-    const int n = request.query.empty() ? -1
-                                        : mg_get_var(request.query.c_str(), request.query.size(),
-                                                     "vertex", value, sizeof value);
-    const std::optional<std::int64_t> vertex = n > 0 ? wholeNumber(value) : std::nullopt;
+    const std::optional<std::string> value = queryValue(request.query, "vertex", 31);
+    const std::optional<std::int64_t> vertex =
+        value && !value->empty() ? wholeNumber(*value) : std::nullopt;
     if (!vertex || static_cast<std::uint64_t>(*vertex) >= scene.preview_vertices) {
       return jsonError(400, "give ?vertex=N, a vertex of the preview mesh (0 to " +
                                 std::to_string(scene.preview_vertices) + " - 1)");

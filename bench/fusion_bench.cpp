@@ -401,7 +401,7 @@ Json report(const Json& systems, float voxel_m, std::size_t frames, const fs::pa
     std::printf("  target %-40s %8s  (>= %.0f)  %s\n", name.c_str(), cell(value, "%.2f").c_str(),
                 goal, std::isfinite(value) ? (met ? "met" : "NOT MET") : "not measured");
   };
-  // Step J's target: real time at the default voxel size (KinectFusion's 3 m / 512).
+  // The fusion speed-up's target: real time at the default voxel size (KinectFusion's 3 m / 512).
   target("full loop frames/s at the default 5.86 mm",
          std::abs(voxel_m - 3.0f / 512.0f) < 1e-6f ? number(ours["notes"]["loop_fps"])
                                                    : objscan::bench::kNotMeasured,

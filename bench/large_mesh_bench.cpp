@@ -1,4 +1,4 @@
-// Memory on a large scene (Step L): a mesh of about 3 million vertices, made of copies of a fused
+// Memory on a large scene (the hostile-input audit): a mesh of about 3 million vertices, made of copies of a fused
 // scene laid side by side, goes through `objscan info`, `objscan discover` and `objscan render`,
 // each in its own process; the figure is the kernel's peak resident set of that process
 // (ru_maxrss, taken by peak_memory). The peer: Open3D reading the same file, also in a process of

@@ -5,12 +5,16 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <fstream>
 #include <limits>
+#include <sstream>
 #include <stdexcept>
 
 #include <nlohmann/json.hpp>
 
 #include "objscan/core/byte_writing.h"
+#include "objscan/core/error.h"
+#include "objscan/core/file_names.h"
 #include "objscan/core/ply_io.h"
 
 namespace objscan {
@@ -84,7 +88,7 @@ std::string encodeStl(const TriangleMesh& mesh) {
 
 /// glTF 2.0 binary: one scene, one node, one mesh of one triangle primitive (points when the
 /// mesh has no triangles); attributes POSITION, NORMAL, COLOR_0 (RGBA8, normalised).
-std::string encodeGlb(const TriangleMesh& mesh) {
+std::string encodeGlb(const TriangleMesh& mesh, const std::optional<Eigen::Vector3f>& up) {
   std::string bin;
   nlohmann::json views = nlohmann::json::array(), accessors = nlohmann::json::array();
   const auto count = mesh.positions.size();
@@ -154,10 +158,17 @@ std::string encodeGlb(const TriangleMesh& mesh) {
     primitive["mode"] = 4;
   }
   while (bin.size() % 4 != 0) bin.push_back('\0');
+  nlohmann::json node = {{"mesh", 0}};
+  if (up && up->norm() > 0.0f && up->allFinite()) {
+    // glTF is Y-up: the rotation (a unit quaternion x, y, z, w) that turns the scene's up onto +Y.
+    const Eigen::Quaternionf q =
+        Eigen::Quaternionf::FromTwoVectors(up->normalized(), Eigen::Vector3f::UnitY()).normalized();
+    node["rotation"] = {q.x(), q.y(), q.z(), q.w()};
+  }
   const nlohmann::json doc = {{"asset", {{"version", "2.0"}, {"generator", "objscan"}}},
                               {"scene", 0},
                               {"scenes", {{{"nodes", {0}}}}},
-                              {"nodes", {{{"mesh", 0}}}},
+                              {"nodes", {node}},
                               {"meshes", {{{"primitives", {primitive}}}}},
                               {"buffers", {{{"byteLength", bin.size()}}}},
                               {"bufferViews", views},
@@ -205,7 +216,8 @@ const char* toString(MeshFormat format) {
 
 std::string extensionOf(MeshFormat format) { return std::string(".") + toString(format); }
 
-std::string encodeMesh(const TriangleMesh& mesh, MeshFormat format) {
+std::string encodeMesh(const TriangleMesh& mesh, MeshFormat format,
+                       const std::optional<Eigen::Vector3f>& up) {
   mesh.validate();
   switch (format) {
     case MeshFormat::kPly:
@@ -215,9 +227,155 @@ std::string encodeMesh(const TriangleMesh& mesh, MeshFormat format) {
     case MeshFormat::kStl:
       return encodeStl(mesh);
     case MeshFormat::kGlb:
-      return encodeGlb(mesh);
+      return encodeGlb(mesh, up);
   }
   throw std::invalid_argument("unknown mesh format");
+}
+
+namespace {
+
+/// The 4-byte little-endian value at `offset` (the caller checked the size).
+template <class T>
+T littleEndianAt(const std::string& bytes, std::size_t offset) {
+  static_assert(sizeof(T) == 4);
+  std::uint32_t bits = 0;
+  for (std::size_t i = 0; i < 4; ++i) {
+    bits |= static_cast<std::uint32_t>(static_cast<unsigned char>(bytes[offset + i])) << (8 * i);
+  }
+  return std::bit_cast<T>(bits);
+}
+
+/// At most 2 GB: what objscan writes stays far below; larger is not a mesh to count in memory.
+std::string readMeshFileBytes(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path, "cannot be opened");
+  std::ostringstream bytes;
+  bytes << in.rdbuf();
+  if (in.bad()) throw InputError(path, "cannot be read");
+  return std::move(bytes).str();
+}
+
+void summarizeObj(const std::filesystem::path& path, const std::string& text,
+                  MeshFileSummary& out) {
+  std::istringstream lines(text);
+  std::string line;
+  std::size_t number = 0;
+  while (std::getline(lines, line)) {
+    ++number;
+    std::istringstream fields(line);
+    std::string kind;
+    fields >> kind;
+    if (kind == "v") {
+      float v[6];
+      int n = 0;
+      while (n < 6 && fields >> v[n]) ++n;
+      if (n < 3) throw InputError(path, "line " + std::to_string(number) + ": a vertex needs x y z");
+      out.bounds.extend(Eigen::Vector3f(v[0], v[1], v[2]));
+      out.colours = out.colours || n == 6;
+      ++out.vertices;
+    } else if (kind == "vn") {
+      out.normals = true;
+    } else if (kind == "f") {
+      std::size_t corners = 0;
+      std::string corner;
+      while (fields >> corner) ++corners;
+      if (corners < 3) throw InputError(path, "line " + std::to_string(number) + ": a face needs 3 corners");
+      out.triangles += corners - 2;
+    }
+  }
+}
+
+void summarizeStl(const std::filesystem::path& path, const std::string& bytes,
+                  MeshFileSummary& out) {
+  if (bytes.rfind("solid", 0) == 0 && bytes.find("facet") != std::string::npos) {
+    throw InputError(path, "is an ASCII STL; objscan writes (and describes) binary STL");
+  }
+  if (bytes.size() < 84) throw InputError(path, "is shorter than a binary STL header (84 bytes)");
+  const std::uint32_t count = littleEndianAt<std::uint32_t>(bytes, 80);
+  if (bytes.size() != 84 + 50 * static_cast<std::uint64_t>(count)) {
+    throw InputError(path, "is " + std::to_string(bytes.size()) + " bytes, but its header says " +
+                               std::to_string(count) + " triangles (" +
+                               std::to_string(84 + 50 * static_cast<std::uint64_t>(count)) +
+                               " bytes): cut short or not a binary STL");
+  }
+  out.triangles = count;
+  out.vertices = 3 * static_cast<std::size_t>(count);
+  out.normals = true;  // one per facet
+  for (std::size_t t = 0; t < count; ++t) {
+    for (int k = 1; k <= 3; ++k) {
+      const std::size_t at = 84 + 50 * t + 12 * static_cast<std::size_t>(k);
+      out.bounds.extend(Eigen::Vector3f(littleEndianAt<float>(bytes, at),
+                                        littleEndianAt<float>(bytes, at + 4),
+                                        littleEndianAt<float>(bytes, at + 8)));
+    }
+  }
+}
+
+void summarizeGlb(const std::filesystem::path& path, const std::string& bytes,
+                  MeshFileSummary& out) {
+  if (bytes.size() < 20 || littleEndianAt<std::uint32_t>(bytes, 0) != 0x46546C67) {
+    throw InputError(path, "is not a binary glTF file (no 'glTF' magic)");
+  }
+  if (littleEndianAt<std::uint32_t>(bytes, 4) != 2) {
+    throw InputError(path, "is glTF version " +
+                               std::to_string(littleEndianAt<std::uint32_t>(bytes, 4)) +
+                               "; objscan describes version 2");
+  }
+  const std::uint32_t json_length = littleEndianAt<std::uint32_t>(bytes, 12);
+  if (littleEndianAt<std::uint32_t>(bytes, 16) != 0x4E4F534A || 20 + std::uint64_t{json_length} > bytes.size()) {
+    throw InputError(path, "has no whole JSON chunk (cut short?)");
+  }
+  const nlohmann::json doc =
+      nlohmann::json::parse(bytes.begin() + 20, bytes.begin() + 20 + json_length, nullptr, false);
+  try {
+    if (doc.is_discarded()) throw std::invalid_argument("its JSON chunk is not JSON");
+    const nlohmann::json& primitive = doc.at("meshes").at(0).at("primitives").at(0);
+    const nlohmann::json& attributes = primitive.at("attributes");
+    const nlohmann::json& position = doc.at("accessors").at(attributes.at("POSITION").get<std::size_t>());
+    out.vertices = position.at("count").get<std::size_t>();
+    if (position.contains("min") && position.contains("max")) {
+      const auto corner = [](const nlohmann::json& a) {
+        return Eigen::Vector3f(a.at(0).get<float>(), a.at(1).get<float>(), a.at(2).get<float>());
+      };
+      out.bounds.extend(corner(position.at("min")));
+      out.bounds.extend(corner(position.at("max")));
+    }
+    out.normals = attributes.contains("NORMAL");
+    out.colours = attributes.contains("COLOR_0");
+    if (primitive.contains("indices") && primitive.value("mode", 4) == 4) {
+      out.triangles =
+          doc.at("accessors").at(primitive.at("indices").get<std::size_t>()).at("count").get<std::size_t>() / 3;
+    }
+    const nlohmann::json& node = doc.at("nodes").at(0);
+    if (node.contains("rotation")) {
+      const nlohmann::json& q = node.at("rotation");
+      out.node_rotation = Eigen::Quaternionf(q.at(3).get<float>(), q.at(0).get<float>(),
+                                             q.at(1).get<float>(), q.at(2).get<float>());
+    }
+  } catch (const std::exception& e) {
+    throw InputError(path, std::string("is not a glTF file objscan can describe: ") + e.what());
+  }
+}
+
+}  // namespace
+
+MeshFileSummary summarizeMeshFile(const std::filesystem::path& path) {
+  const std::string extension = lowercaseExtension(path);
+  MeshFileSummary out;
+  const std::string bytes = readMeshFileBytes(path);
+  if (extension == ".obj") {
+    out.format = MeshFormat::kObj;
+    summarizeObj(path, bytes, out);
+  } else if (extension == ".stl") {
+    out.format = MeshFormat::kStl;
+    summarizeStl(path, bytes, out);
+  } else if (extension == ".glb") {
+    out.format = MeshFormat::kGlb;
+    summarizeGlb(path, bytes, out);
+  } else {
+    throw InputError(path, "is not named .obj, .stl or .glb");
+  }
+  return out;
 }
 
 }  // namespace objscan

@@ -410,6 +410,7 @@ SceneDiscovery discoverScenes(std::vector<SceneInput> inputs,
     DiscoveredScene scene;
     scene.name = std::move(input.name);
     scene.mesh = std::move(input.mesh);
+    scene.content_hash = input.content_hash;
     scene.truth = std::move(input.truth);
     scene.whole_objects = std::move(input.whole_objects);
     findOrRecall(scene, input.content_hash, options, settings, catalog ? &*catalog : nullptr,
@@ -480,7 +481,8 @@ CatalogTrainingSet catalogTrainingSet(const fs::path& catalog_path, const Discov
   std::vector<RecurrenceScene> measured;
   for (LabelledScene& s : scenes) measured.push_back({s.id, &s.candidates});
   out.normaliser = addRecurrenceAndNormalise(measured, &catalog, settings, config).normaliser;
-  for (const LabelledScene& s : scenes) {
+  for (std::size_t k = 0; k < scenes.size(); ++k) {
+    const LabelledScene& s = scenes[k];
     for (std::size_t i = 0; i < s.labels.size(); ++i) {
       const std::optional<int>& label = s.labels[i];
       if (label != static_cast<int>(SegmentLabel::kObject) &&
@@ -490,6 +492,7 @@ CatalogTrainingSet catalogTrainingSet(const fs::path& catalog_path, const Discov
       out.measures.push_back(s.candidates.measures[i]);
       out.labels.push_back(*label);
       out.segment_ids.push_back(s.segment_ids[i]);
+      out.scene_of.push_back(k);
     }
   }
   return out;

@@ -328,6 +328,57 @@ MeasureRow MeasureNormaliser::normalise(const ShapeMeasures& m) const {
   return z;
 }
 
+HeldOutScenes leaveOneSceneOut(ScoreKind kind, const MeasureNormaliser& normaliser,
+                               const std::vector<MeasureRow>& normalised_rows,
+                               const std::vector<int>& labels,
+                               const std::vector<std::size_t>& scene_of, const MeasureMask& mask,
+                               const TrainConfig& config, std::size_t max_scenes) {
+  if (normalised_rows.size() != labels.size() || scene_of.size() != labels.size()) {
+    throw std::invalid_argument("leaveOneSceneOut: rows, labels and scenes differ in length");
+  }
+  std::vector<std::size_t> scenes(scene_of.begin(), scene_of.end());
+  std::sort(scenes.begin(), scenes.end());
+  scenes.erase(std::unique(scenes.begin(), scenes.end()), scenes.end());
+  HeldOutScenes out;
+  if (scenes.size() < 2 || max_scenes == 0) return out;
+  // Evenly spread over the scenes, so that a long list costs at most max_scenes trainings.
+  std::vector<std::size_t> chosen;
+  const std::size_t n = std::min(max_scenes, scenes.size());
+  for (std::size_t k = 0; k < n; ++k) chosen.push_back(scenes[k * scenes.size() / n]);
+  std::vector<double> scores;
+  std::vector<int> truth;
+  for (const std::size_t held : chosen) {
+    std::vector<MeasureRow> train_rows;
+    std::vector<int> train_labels;
+    std::size_t objects = 0;
+    for (std::size_t i = 0; i < labels.size(); ++i) {
+      if (scene_of[i] == held) continue;
+      train_rows.push_back(normalised_rows[i]);
+      train_labels.push_back(labels[i]);
+      objects += labels[i] == 1 ? 1 : 0;
+    }
+    const auto folds = static_cast<std::size_t>(config.folds);
+    if (objects < folds || train_labels.size() - objects < folds) {
+      ++out.skipped;
+      continue;
+    }
+    const ObjectnessModel model =
+        ObjectnessModel::train(kind, normaliser, train_rows, train_labels, mask, config);
+    ++out.scenes;
+    for (std::size_t i = 0; i < labels.size(); ++i) {
+      if (scene_of[i] != held) continue;
+      const double score = model.scoreNormalised(normalised_rows[i]);
+      scores.push_back(score);
+      truth.push_back(labels[i]);
+      out.min_score = scores.size() == 1 ? score : std::min(out.min_score, score);
+      out.max_score = scores.size() == 1 ? score : std::max(out.max_score, score);
+    }
+  }
+  out.rows = scores.size();
+  if (!scores.empty()) out.ap = averagePrecision(scores, truth);
+  return out;
+}
+
 double averagePrecision(const std::vector<double>& scores, const std::vector<int>& labels) {
   if (scores.size() != labels.size()) {
     throw std::invalid_argument("averagePrecision: scores and labels differ in length");

@@ -7,10 +7,10 @@
 #include <stdexcept>
 #include <utility>
 
-#include <Eigen/Eigenvalues>
 #include <opencv2/imgproc.hpp>
 
 #include "objscan/render/offscreen_renderer.h"
+#include "objscan/core/mesh_orientation.h"
 #include "objscan/core/palette.h"
 
 namespace objscan::render {
@@ -114,45 +114,6 @@ std::vector<Eigen::Vector3f> sampleVertices(const TriangleMesh& mesh, std::size_
   return out;
 }
 
-/// How the mesh's faces are oriented, from one pass over them.
-struct FaceNormals {
-  /// The area-weighted normal (by winding), flipped to agree with the vertex normals when the
-  /// mesh has them (fusion's normals point to free space, the sensor's side).
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();  ///< sum of area * n n^T
-};
-
-FaceNormals faceNormals(const TriangleMesh& mesh) {
-  FaceNormals out;
-  Eigen::Vector3d& sum = out.mean;
-  Eigen::Vector3d vertex_sum = Eigen::Vector3d::Zero();
-  for (const Eigen::Vector3i& t : mesh.triangles) {
-    const Eigen::Vector3d a = mesh.positions[t[0]].cast<double>();
-    const Eigen::Vector3d cross =
-        (mesh.positions[t[1]].cast<double>() - a).cross(mesh.positions[t[2]].cast<double>() - a);
-    const double twice_area = cross.norm();
-    if (!(twice_area > 0.0)) continue;
-    sum += cross;  // = 2 area * unit normal
-    out.scatter += cross * cross.transpose() / twice_area;
-    if (!mesh.normals.empty()) {
-      vertex_sum += (mesh.normals[t[0]] + mesh.normals[t[1]] + mesh.normals[t[2]]).cast<double>();
-    }
-  }
-  if (!mesh.normals.empty() && sum.dot(vertex_sum) < 0.0) sum = -sum;
-  return out;
-}
-
-/// sceneUp's direction from the face normals (see there).
-Eigen::Vector3f upOf(const FaceNormals& normals) {
-  if (!(normals.scatter.trace() > 0.0)) {
-    throw std::invalid_argument("snapshot: the mesh has no triangle of positive area");
-  }
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(normals.scatter);
-  Eigen::Vector3d up = solver.eigenvectors().col(2);  // largest eigenvalue last
-  if (up.dot(normals.mean) < 0.0) up = -up;
-  return up.cast<float>().normalized();
-}
-
 /// The horizontal direction towards the side the surfaces face: the mean normal (`mean`, from
 /// faceNormals) without its up part, or (when it has none) the horizontal axis across which the
 /// scene is thinnest.
@@ -253,7 +214,7 @@ const char* toString(ViewKind kind) {
   return "?";
 }
 
-Eigen::Vector3f sceneUp(const TriangleMesh& mesh) { return upOf(faceNormals(mesh)); }
+Eigen::Vector3f sceneUp(const TriangleMesh& mesh) { return objscan::sceneUp(mesh); }
 
 SnapshotView overviewView(const TriangleMesh& scene, const Trajectory* trajectory,
                           const std::vector<PaintedHypothesis>& hypotheses, int width, int height,

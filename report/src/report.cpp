@@ -410,7 +410,12 @@ constexpr std::string_view kView3dScript = R"js(
     var data = document.getElementById('mesh-data').textContent;
     var mesh = ObjscanMeshView.decode(ObjscanMeshView.base64ToBuffer(data.trim()));
     var camera = JSON.parse(document.getElementById('mesh-camera').textContent);
-    new ObjscanMeshView.MeshView(box, mesh, camera);
+    var view = new ObjscanMeshView.MeshView(box, mesh, camera);
+    // The best few in their colours, as the pictures paint them; the rest on demand.
+    view.setPaintTop(Number(box.getAttribute('data-paint-top')));
+    var all = document.getElementById('mesh-all');
+    all.addEventListener('change', function () { view.setPaintAll(all.checked); });
+    box.meshView = view;
     box.setAttribute('data-state', 'ready');
   } catch (e) {
     box.textContent = 'The 3-D view could not start here (' + e.message + ').';
@@ -825,7 +830,8 @@ std::string settingsSection(const Settings& st) {
 /// in their rank colours, at most kInlineTriangles triangles (decimated past that). Always the
 /// command that opens the full viewer, and a link to it when the page is served by it.
 std::string view3dSection(const Hypotheses& hypotheses, const TriangleMesh* mesh,
-                          const std::optional<OverviewCamera>& camera, const fs::path& dir) {
+                          const std::optional<OverviewCamera>& camera, const fs::path& dir,
+                          std::size_t painted_top) {
   std::string html = "<section id=\"view3d\">\n<h2>3-D view</h2>\n";
   const std::string command = "<code>objscan view " + escape(dir.string()) + "</code>";
   std::string note;
@@ -840,8 +846,14 @@ std::string view3dSection(const Hypotheses& hypotheses, const TriangleMesh* mesh
   }
   if (made) {
     const ViewMesh& view = *made;
-    html += "<div id=\"mesh-view\" data-state=\"loading\"></div>\n";
-    note = "Drag to turn, right-drag to pan, wheel to zoom; the hypotheses in their rank colours";
+    html += "<div id=\"mesh-view\" data-state=\"loading\" data-paint-top=\"" +
+            std::to_string(painted_top) + "\"></div>\n<label><input type=\"checkbox\" " +
+            "id=\"mesh-all\"> paint all " + std::to_string(hypotheses.hypotheses.size()) +
+            " hypotheses</label>\n";
+    note = "Drag to turn, right-drag to pan, wheel to zoom; the best " +
+           std::to_string(painted_top) +
+           " hypotheses in their rank colours, as in the pictures (the box above paints the "
+           "rest too; ranks past ten reuse the colours)";
     if (view.preview.mesh.triangles.size() < mesh->triangles.size()) {
       note += "; shown with " + std::to_string(view.preview.mesh.triangles.size()) + " of its " +
               std::to_string(mesh->triangles.size()) + " triangles";
@@ -874,8 +886,12 @@ fs::path writeReport(const ScanResults& results, const fs::path& dir,
   html += interruptedNotice(in);
   html += pictures(in);
   if (!scene_mesh && results.mesh) scene_mesh = &*results.mesh;
+  // As many as the pictures paint: their close-ups (render --top), else render's default.
+  std::size_t painted_top = results.pictures ? results.pictures->closeups.size() : 0;
+  if (painted_top == 0) painted_top = kDefaultPaintedTop;
   html += view3dSection(*results.hypotheses, scene_mesh,
-                        results.pictures ? results.pictures->camera : std::nullopt, dir);
+                        results.pictures ? results.pictures->camera : std::nullopt, dir,
+                        painted_top);
   html += hypothesesSection(in);
   if (in.evaluation) html += evaluationSection(*in.evaluation);
   if (in.timings) html += timingsSection(*in.timings);

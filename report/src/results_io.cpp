@@ -1,5 +1,6 @@
 #include "objscan/report/results_io.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <string_view>
@@ -11,6 +12,8 @@
 #include "json_node.h"
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/error.h"
+#include "objscan/core/file_names.h"
+#include "objscan/core/mesh_orientation.h"
 #include "objscan/core/output_folder.h"
 #include "objscan/core/ply_io.h"
 #include "objscan/core/trajectory.h"
@@ -148,13 +151,42 @@ Json objectPoseJson(const HypothesisRecord& h) {
 /// Each object's mesh file and pose file into the staging folder `partial`.
 void writeObjects(const fs::path& partial, const Hypotheses& hypotheses,
                   const discovery::SceneDiscovery& run, MeshFormat format) {
+  // glTF is Y-up: each scene's up (as the overview picture finds it), for the GLB's node.
+  std::vector<std::optional<Eigen::Vector3f>> ups(run.scenes.size());
+  if (format == MeshFormat::kGlb) {
+    for (std::size_t s = 0; s < run.scenes.size(); ++s) {
+      try {
+        ups[s] = sceneUp(run.scenes[s].mesh);
+      } catch (const std::invalid_argument&) {  // no face of any area: no up to turn
+      }
+    }
+  }
   for (std::size_t i = 0; i < run.ranked.size(); ++i) {
-    const TriangleMesh& mesh = run.scenes[run.ranked[i].scene].mesh;
+    const std::size_t scene = run.ranked[i].scene;
+    const TriangleMesh& mesh = run.scenes[scene].mesh;
     const HypothesisRecord& h = hypotheses.hypotheses.at(i);
     const fs::path file = partial / fs::path(h.file).filename();
-    writeFileAtomically(file,
-                        encodeMesh(mesh.subset(run.ranked[i].hypothesis.segment.vertices), format));
+    writeFileAtomically(file, encodeMesh(mesh.subset(run.ranked[i].hypothesis.segment.vertices),
+                                         format, ups[scene]));
     if (h.box) writeJson(partial / rankFileName(h.rank, ".json"), objectPoseJson(h));
+  }
+}
+
+/// Whether discovery's scene `name` is a PLY file that view and render can read again as it is
+/// (not a PCD view, whose points become a mesh as it is read, nor "<source>@frameN").
+bool isPlyFile(const std::string& name) {
+  std::error_code ec;
+  return lowercaseExtension(name) == ".ply" && fs::is_regular_file(name, ec);
+}
+
+/// The copies of the scenes that are not PLY files into the staging folder `partial`.
+void writeSceneCopies(const fs::path& partial, const Hypotheses& hypotheses,
+                      const discovery::SceneDiscovery& run) {
+  for (std::size_t i = 0; i < run.scenes.size() && i < hypotheses.scenes.size(); ++i) {
+    const std::string& copy = hypotheses.scenes[i].mesh_copy;
+    if (copy.empty()) continue;
+    writeFileAtomically(partial / fs::path(copy).filename(),
+                        encodeMesh(run.scenes[i].mesh, MeshFormat::kPly));
   }
 }
 
@@ -186,6 +218,12 @@ Hypotheses hypothesesFrom(const discovery::SceneDiscovery& run, const std::strin
     r.candidates = scene.candidates.segments.size();
     r.hypotheses = scene.hypotheses;
     r.from_catalog = scene.from_catalog;
+    if (!isPlyFile(scene.name)) {
+      char copy[32];
+      std::snprintf(copy, sizeof copy, "scene_%03zu.ply", out.scenes.size() + 1);
+      r.mesh_copy = std::string(kScenesFolder) + "/" + copy;
+      r.content_hash = scene.content_hash;
+    }
     if (run.catalog) r.catalog_scene = scene.scene_id;
     if (!scene.from_catalog) {
       const discovery::DiscoveryTimings& t = scene.candidates.timings;
@@ -219,16 +257,27 @@ Hypotheses hypothesesFrom(const discovery::SceneDiscovery& run, const std::strin
 
 void writeDiscovery(const fs::path& dir, const Hypotheses& hypotheses,
                     const discovery::SceneDiscovery& run, MeshFormat format) {
+  const bool copies = std::any_of(hypotheses.scenes.begin(), hypotheses.scenes.end(),
+                                  [](const SceneRecord& s) { return !s.mesh_copy.empty(); });
   const fs::path partial = freshPartialFolder(dir, kObjectsFolder);
   try {
     writeObjects(partial, hypotheses, run, format);
+    if (copies) writeSceneCopies(freshPartialFolder(dir, kScenesFolder), hypotheses, run);
   } catch (...) {
     std::error_code ec;
-    fs::remove_all(partial, ec);  // a failed run leaves the old objects/ and nothing half-made
+    // A failed run leaves the old objects/ and scenes/, and nothing half-made.
+    fs::remove_all(partial, ec);
+    fs::remove_all(dir / (std::string(kScenesFolder) + ".partial"), ec);
     throw;
   }
   writeHypotheses(dir / kHypothesesFile, hypotheses);
   swapInFolder(dir, kObjectsFolder);
+  if (copies) {
+    swapInFolder(dir, kScenesFolder);
+  } else {
+    std::error_code ec;
+    fs::remove_all(dir / kScenesFolder, ec);  // an earlier run's copies, named by nothing now
+  }
 }
 
 void writeHypotheses(const fs::path& file, const Hypotheses& hyp) {
@@ -248,6 +297,8 @@ void writeHypotheses(const fs::path& file, const Hypotheses& hyp) {
   for (const SceneRecord& s : hyp.scenes) {
     Json j = {{"mesh", s.mesh}, {"from_catalog", s.from_catalog}};
     if (!s.mesh_absolute.empty()) j["mesh_absolute"] = s.mesh_absolute;
+    if (!s.mesh_copy.empty()) j["mesh_copy"] = s.mesh_copy;
+    if (!s.content_hash.empty()) j["content_hash"] = s.content_hash;
     if (s.catalog_scene) j["catalog_scene"] = *s.catalog_scene;
     if (s.vertices) j["vertices"] = *s.vertices;
     if (s.faces) j["faces"] = *s.faces;
@@ -308,6 +359,8 @@ Hypotheses readHypotheses(const fs::path& file) {
     SceneRecord r;
     r.mesh = s.require("mesh", s.string("mesh"));
     r.mesh_absolute = s.string("mesh_absolute").value_or("");
+    r.mesh_copy = s.string("mesh_copy").value_or("");
+    r.content_hash = s.string("content_hash").value_or("");
     r.vertices = s.count("vertices");
     r.faces = s.count("faces");
     r.candidates = s.count("candidates");
@@ -543,6 +596,15 @@ Json cameraJson(const OverviewCamera& c) {
 
 }  // namespace
 
+std::size_t paintedTop(const fs::path& dir) {
+  std::error_code ec;
+  std::size_t painted = 0;
+  while (fs::is_regular_file(dir / kRendersFolder / rankFileName(painted + 1, ".png"), ec)) {
+    ++painted;
+  }
+  return painted > 0 ? painted : kDefaultPaintedTop;
+}
+
 OverviewCamera readOverviewCamera(const fs::path& file) {
   const Json doc = json_node::parseFile(file);
   const Node top(file, doc, "");
@@ -753,7 +815,12 @@ ScanResults readResults(const fs::path& dir, const ResultsParts& parts) {
 namespace objscan::report {
 
 std::vector<fs::path> sceneMeshPlaces(const fs::path& dir, const SceneRecord& scene) {
-  std::vector<fs::path> places = {dir / kMeshFile};
+  std::vector<fs::path> places;
+  // Only inside the folder: hypotheses.json cannot send the reader elsewhere through it.
+  if (const fs::path copy(scene.mesh_copy); !copy.empty() && copy.is_relative()) {
+    places.push_back(dir / copy);
+  }
+  places.push_back(dir / kMeshFile);
   const fs::path noted(scene.mesh);
   places.push_back(noted.is_relative() ? dir / noted : noted);
   if (!scene.mesh_absolute.empty()) {
@@ -768,8 +835,13 @@ TriangleMesh readSceneMesh(const fs::path& dir, const SceneRecord& scene, fs::pa
   const std::vector<fs::path> places = sceneMeshPlaces(dir, scene);
   std::optional<InputError> mismatch;
   std::error_code ec;
+  std::optional<fs::path> not_ply;
   for (const fs::path& place : places) {
     if (!fs::is_regular_file(place, ec)) continue;
+    if (lowercaseExtension(place) != ".ply") {
+      if (!not_ply) not_ply = place;  // a PCD view or the like, from before the copies
+      continue;
+    }
     TriangleMesh mesh = readPly(place);
     if (scene.vertices && mesh.positions.size() == *scene.vertices) {
       if (found) *found = place;
@@ -784,9 +856,19 @@ TriangleMesh readSceneMesh(const fs::path& dir, const SceneRecord& scene, fs::pa
     }
   }
   if (mismatch) throw *mismatch;
+  if (not_ply) {
+    throw InputError(*not_ply,
+                     scene.mesh_copy.empty()
+                         ? "is not a PLY file, and the results folder holds no copy of the mesh "
+                           "made from it (made by an older objscan): run objscan discover again"
+                         : "is not a PLY file, and the copy of the mesh made from it, " +
+                               (dir / scene.mesh_copy).string() +
+                               ", is missing: run objscan discover again");
+  }
   std::string list;
-  for (std::size_t i = 1; i < places.size(); ++i)
-    list += (i > 1 ? " or " : "") + places[i].string();
+  for (const fs::path& place : places) {
+    if (place != dir / kMeshFile) list += (list.empty() ? "" : " or ") + place.string();
+  }
   throw InputError(dir / kMeshFile,
                    "missing: the scene mesh hypotheses.json was made from (mesh.ply in the "
                    "results folder, or " +

@@ -60,6 +60,9 @@
     this.mode = mesh.colours ? "colour" : "shading";
     this.start = camera || null;
     this.showRanks = true;
+    // The pictures paint the best few (render --top); the rest only when asked (setPaintAll).
+    this.paintTop = Infinity;
+    this.paintAll = false;
     this.highlight = null;
     this.renderer = new THREE.WebGLRenderer({antialias: true, preserveDrawingBuffer: true});
     this.renderer.setPixelRatio(window.devicePixelRatio || 1);
@@ -154,6 +157,12 @@
 
   MeshView.prototype.setMode = function (mode) { this.mode = mode; this.paint(); };
   MeshView.prototype.setShowRanks = function (on) { this.showRanks = on; this.paint(); };
+  // Paint ranks 1 to `top` only, as the pictures do; setPaintAll(true) paints every hypothesis.
+  MeshView.prototype.setPaintTop = function (top) { this.paintTop = top; this.paint(); };
+  MeshView.prototype.setPaintAll = function (on) { this.paintAll = on; this.paint(); };
+  MeshView.prototype.painted = function (rank) {
+    return this.showRanks && rank > 0 && (this.paintAll || rank <= this.paintTop);
+  };
   // `vertices`: preview vertex indices (a typed array or array) to draw in the highlight colour;
   // null for none.
   MeshView.prototype.setHighlight = function (vertices) { this.highlight = vertices; this.paint(); };
@@ -164,7 +173,7 @@
       var r = GREY, g = GREY, b = GREY;
       if (useColour) { r = m.colours[4 * v]; g = m.colours[4 * v + 1]; b = m.colours[4 * v + 2]; }
       var rank = m.ranks[v];
-      if (this.showRanks && rank > 0) {
+      if (this.painted(rank)) {
         var c = rankColour(rank);
         r = 0.35 * r + 0.65 * c[0]; g = 0.35 * g + 0.65 * c[1]; b = 0.35 * b + 0.65 * c[2];
       } else if (this.highlight) {

@@ -3,8 +3,12 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <regex>
+#include <set>
+#include <string>
 
 #include "cli_expect.h"
+#include "objscan/core/atomic_file.h"
 #include "objscan/core/ply_io.h"
 #include "test_support.h"
 
@@ -28,6 +32,62 @@ void expectOneLineError(const ProcessResult& r, const std::string& path,
   ASSERT_EQ(ls.size(), 1u) << r.err;
   EXPECT_EQ(ls[0].rfind("objscan: error: " + path + ": ", 0), 0u) << ls[0];
   EXPECT_NE(ls[0].find(needle), std::string::npos) << ls[0];
+}
+
+/// The source files of a folder of the source tree (.cpp and .h), by name.
+std::vector<fs::path> sourcesIn(const std::string& folder) {
+  std::vector<fs::path> out;
+  for (const auto& e : fs::recursive_directory_iterator(fs::path(OBJSCAN_SOURCE_DIR) / folder)) {
+    const std::string ext = e.path().extension().string();
+    if (e.is_regular_file() && (ext == ".cpp" || ext == ".h")) out.push_back(e.path());
+  }
+  return out;
+}
+
+TEST(Architecture, TheCodeKeepsWhatDocsArchitectureSays) {
+  // civetweb is included by the HTTP layer only (http_server, http_query), not by the routes.
+  std::set<std::string> civetweb;
+  for (const fs::path& f : sourcesIn("app")) {
+    if (readWholeFile(f).find("#include <civetweb.h>") != std::string::npos) {
+      civetweb.insert(f.filename().string());
+    }
+  }
+  EXPECT_EQ(civetweb, (std::set<std::string>{"http_query.cpp", "http_server.cpp"}));
+  const std::string page = readWholeFile(fs::path(OBJSCAN_SOURCE_DIR) / "docs/architecture.md");
+  EXPECT_NE(page.find("civetweb is included by these two .cpp files only"), std::string::npos);
+  // The library prints only through core's log and progress bar; app prints and exits.
+  const std::regex prints(
+      R"((^|[^A-Za-z_0-9:])(std::)?(printf|fprintf|puts|fputs|exit)\s*\(|std::(cout|cerr)\b)");
+  for (const char* module : {"core", "render", "capture", "fusion", "discovery", "report",
+                             "pipeline"}) {
+    for (const fs::path& f : sourcesIn(std::string(module) + "/src")) {
+      if (f.filename() == "log.cpp" || f.filename() == "progress.cpp") continue;
+      EXPECT_FALSE(std::regex_search(readWholeFile(f), prints)) << f;
+    }
+  }
+  // app includes every module itself, as the diagram says.
+  std::string app;
+  for (const fs::path& f : sourcesIn("app")) app += readWholeFile(f);
+  for (const char* module : {"core", "render", "capture", "fusion", "discovery", "report",
+                             "pipeline"}) {
+    EXPECT_NE(app.find(std::string("#include \"objscan/") + module + "/"), std::string::npos)
+        << module;
+  }
+  EXPECT_NE(page.find("includes every module below itself"), std::string::npos);
+}
+
+TEST(Docs, NameFeaturesNotInternalMilestones) {
+  // "Step H" means nothing to a reader; the docs name the feature instead.
+  const std::regex step(R"(\bStep [A-Z]\b)");
+  std::vector<fs::path> pages = {fs::path(OBJSCAN_SOURCE_DIR) / "README.md"};
+  for (const auto& e : fs::directory_iterator(fs::path(OBJSCAN_SOURCE_DIR) / "docs")) {
+    if (e.path().extension() == ".md") pages.push_back(e.path());
+  }
+  for (const fs::path& page : pages) {
+    const std::string text = readWholeFile(page);
+    std::smatch m;
+    EXPECT_FALSE(std::regex_search(text, m, step)) << page << ": " << m.str();
+  }
 }
 
 TEST(Cli, HelpForEveryCommandExitsZero) {
@@ -61,6 +121,27 @@ TEST(Cli, CompletionAndManPageComeFromTheOptionsThemselves) {
       {});
   ASSERT_EQ(words.exit_code, 0) << words.err;
   EXPECT_EQ(words.out, "fuse\n--object-format\n");
+  // An option of a few values completes to them, not to file names; a <source> also to the
+  // sources that are not files. In an empty folder, so that no file name joins in.
+  fs::create_directories(dir / "empty");
+  testing::ProcessOptions in_empty;
+  in_empty.cwd = dir / "empty";
+  const auto complete = [&](const std::string& words_line, int cword) {
+    const ProcessResult r = testing::runProcess(
+        {"/bin/bash", "-c",
+         "source " + (dir / "objscan.bash").string() + "; COMP_WORDS=(" + words_line +
+             "); COMP_CWORD=" + std::to_string(cword) + "; _objscan; echo \"${COMPREPLY[*]}\""},
+        in_empty);
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return r.out;
+  };
+  EXPECT_EQ(complete("objscan discover --object-format ''", 3), "ply obj stl glb\n");
+  EXPECT_EQ(complete("objscan scan x --object-format g", 4), "glb\n");
+  EXPECT_EQ(complete("objscan render out --view t", 4), "trajectory three-quarter top\n");
+  EXPECT_EQ(complete("objscan train --kind r", 3), "rbf_svm\n");
+  EXPECT_EQ(complete("objscan scan ''", 2), "synth: live virtual:\n");
+  EXPECT_EQ(complete("objscan fuse v", 2), "virtual:\n");
+  EXPECT_EQ(complete("objscan discover ''", 2), "\n");  // meshes: files only
 
   const ProcessResult man = objscan({"--man"});
   ASSERT_EQ(man.exit_code, 0) << man.err;
@@ -71,11 +152,30 @@ TEST(Cli, CompletionAndManPageComeFromTheOptionsThemselves) {
   ASSERT_EQ(page.exit_code, 0) << page.err;
   EXPECT_EQ(page.err, "");
   for (const char* text :
-       {"NAME", "COMMANDS", "EXIT STATUS", "OBJSCAN_MEMORY_LIMIT", "fuse", "discover",
+       {"NAME", "COMMANDS", "EXIT STATUS", "ENVIRONMENT", "OBJSCAN_MEMORY_LIMIT",
+        "OBJSCAN_CATALOG", "OBJSCAN_LABELLER", "OBJSCAN_VIRTUAL_SENSOR", "XDG_DATA_HOME", "TMPDIR",
+        "fuse", "discover",
         "--object-format", "objscan scan recordings/tum_fr2_desk.oni"}) {
     EXPECT_NE(page.out.find(text), std::string::npos) << text;
   }
   EXPECT_EQ(objscan({"--completion", "tcsh"}).exit_code, 2);
+}
+
+TEST(Cli, ConfigMessagesSayWhatIsWrongWithTheFileGiven) {
+  // Issue 32: a folder was "not readable (missing?)", /proc/self/mem printed libstdc++'s
+  // "basic_filebuf::underflow" with no file name, and render --config blamed the file.
+  TempDir dir;
+  expectOneErrorLine(objscan({"scan", "synth:1", "--out", (dir / "o").string(), "--config",
+                              dir.path().string()}),
+                     2, dir.path().string() + " is a folder: give the settings.json in it");
+  expectOneErrorLine(
+      objscan({"scan", "synth:1", "--out", (dir / "o").string(), "--config", "/proc/self/mem"}), 2,
+      "/proc/self/mem: cannot be read: Input/output error");
+  writeBytes(dir / "settings.json", "{}");
+  expectOneErrorLine(objscan({"render", (dir / "o").string(), "--config",
+                              (dir / "settings.json").string()}),
+                     2, "objscan render takes no --config");
+  EXPECT_FALSE(fs::exists(dir / "o"));
 }
 
 TEST(Cli, UsageErrorsPointToTheCommandsOwnHelpAndSayWhatIsWanted) {
@@ -267,9 +367,22 @@ TEST(Cli, InfoOnBadInputGivesOneLineAndExitTwo) {
   writeBytes(dir / "nan.ply", header + "0 0 0\nnan 0 0\n0 1 0\n3 0 1 2\n");
   expectOneLineError(objscan({"info", (dir / "nan.ply").string()}), (dir / "nan.ply").string(),
                      "non-finite position");
-  writeBytes(dir / "scene.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
-  expectOneLineError(objscan({"info", (dir / "scene.obj").string()}), (dir / "scene.obj").string(),
+  writeBytes(dir / "scene.fbx", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  expectOneLineError(objscan({"info", (dir / "scene.fbx").string()}), (dir / "scene.fbx").string(),
                      "unknown format");
+  // The object formats objscan writes are described, and a damaged one is said to be.
+  writeBytes(dir / "scene.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  const ProcessResult obj = objscan({"info", (dir / "scene.obj").string()});
+  EXPECT_EQ(obj.exit_code, 0) << obj.err;
+  EXPECT_NE(obj.out.find("vertices      3 (normals: no, colours: no)\nfaces         1 triangle\n"),
+            std::string::npos)
+      << obj.out;
+  writeBytes(dir / "noise.glb", std::string(100, 'x'));
+  expectOneLineError(objscan({"info", (dir / "noise.glb").string()}), (dir / "noise.glb").string(),
+                     "no 'glTF' magic");
+  writeBytes(dir / "cut.stl", std::string(84, '\0').replace(80, 1, "\x05"));
+  expectOneLineError(objscan({"info", (dir / "cut.stl").string()}), (dir / "cut.stl").string(),
+                     "header says 5 triangles");
   writeBytes(dir / "noise.ply", std::string("\x89PNG\r\n\x1a\n", 8) + std::string(100, 'x'));
   expectOneLineError(objscan({"info", (dir / "noise.ply").string()}), (dir / "noise.ply").string(),
                      "not a PLY file");

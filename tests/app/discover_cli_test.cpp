@@ -211,6 +211,34 @@ TEST(DiscoverCli, ObjectsInEveryFormatWithAPoseThatPlacesThem) {
       EXPECT_EQ(gltf["asset"]["version"], "2.0");
       EXPECT_EQ(gltf["accessors"][0]["count"], ply.positions.size());
       EXPECT_EQ(gltf["meshes"][0]["primitives"][0]["mode"], 4);
+      // glTF is Y-up: the node turns the scene's up (+z: the table is the plane z = 0, the
+      // mound rises along z) onto +Y, so the object stands in a glTF viewer as on the table.
+      const nlohmann::json& q = gltf["nodes"][0]["rotation"];
+      ASSERT_EQ(q.size(), 4u) << gltf["nodes"].dump();
+      const Eigen::Quaternionf node_rotation(q[3].get<float>(), q[0].get<float>(), q[1].get<float>(),
+                                        q[2].get<float>());
+      EXPECT_NEAR(node_rotation.norm(), 1.0f, 1e-5f);
+      EXPECT_LT((node_rotation * Eigen::Vector3f::UnitZ() - Eigen::Vector3f::UnitY()).norm(), 1e-4f);
+      // As a viewer shows it: the mound's top is the highest point along +Y, above its rim.
+      float low = INFINITY, high = -INFINITY, top_y = -INFINITY;
+      for (const Eigen::Vector3f& p : ply.positions) {
+        const float y = (node_rotation * p).y();
+        low = std::min(low, y);
+        high = std::max(high, y);
+        if (p.z() == ply.bounds().max().z()) top_y = y;
+      }
+      EXPECT_NEAR(top_y, high, 1e-5f);
+      EXPECT_NEAR(high - low, ply.bounds().sizes().z(), 1e-5f);
+    }
+    // info describes each object file objscan writes.
+    const ProcessResult info = objscan({"info", (out / "objects" / ("rank_001." + format)).string()});
+    ASSERT_EQ(info.exit_code, 0) << info.err;
+    const char* kind = format == "obj" ? "Wavefront OBJ" : format == "stl" ? "binary STL" : "binary glTF 2.0";
+    EXPECT_NE(info.out.find(std::string("mesh (") + kind), std::string::npos) << info.out;
+    EXPECT_NE(info.out.find(std::to_string(ply.triangles.size()) + " triangles"), std::string::npos)
+        << info.out;
+    if (format == "glb") {
+      EXPECT_NE(info.out.find("1.0000) (the scene's up"), std::string::npos) << info.out;
     }
   }
   expectOneErrorLine(objscan({"discover", (dir / "scene.ply").string(), "--out",
@@ -612,6 +640,11 @@ TEST(TrainCli, AModelFromTrainScoresDiscover) {
   ProcessResult r = objscan(args);
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("chosen        C="), std::string::npos) << r.out;
+  // Besides the cross-validated AP, what it does on each scene when trained on the others.
+  EXPECT_NE(r.out.find("held out      AP "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("each of 4 scenes scored by a model trained on the others"),
+            std::string::npos)
+      << r.out;
   writePly(dir / "test.ply",
            table({{-0.2f, 0.0f, 0.06f, 0.06f, 1, false}, {0.2f, 0.0f, 0.036f, 0.12f, 2, false}}));
   r = objscan({"discover", (dir / "test.ply").string(), "--out", (dir / "out").string(),
@@ -657,6 +690,32 @@ std::pair<std::size_t, std::size_t> labelRoundMounds(const fs::path& catalog_fil
   return {objects, not_objects};
 }
 
+TEST(TrainCli, WarnsWhenTheLabelsAreTooFewToTrustAndSaysNothingWasHeldOut) {
+  // Twelve labels of one scene (the first-time user's case): trained, but with a warning that
+  // names the threshold, and no held-out figure to mistake for one.
+  TempDir dir;
+  const std::string catalog = (dir / "catalog.sqlite").string();
+  std::vector<std::string> args = {"discover"};
+  for (const std::string& p : labelledScenes(dir, 1)) args.push_back(p);
+  for (const char* a : {"--catalog", catalog.c_str(), "--out"}) args.emplace_back(a);
+  args.push_back((dir / "found").string());
+  ProcessResult r = objscan(args);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto [objects, not_objects] = labelRoundMounds(catalog, dir.path(), 6);
+  ASSERT_GE(objects, 5u);  // train's least: one of each class per fold
+  ASSERT_EQ(not_objects, 6u);
+  r = objscan({"train", "--catalog", catalog, "--model", (dir / "model.json").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("too few labels to trust this model: " + std::to_string(objects) +
+                       " objects and 6 not objects, below 30 of each"),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("all labels are from one scene"), std::string::npos) << r.err;
+  EXPECT_NE(r.out.find("held out      not measured: the labels are from one scene"),
+            std::string::npos)
+      << r.out;
+}
+
 TEST(TrainCli, TrainsOnTheCatalogsLabelsWithoutScenesAndDiscoverRanksWithTheModel) {
   TempDir dir;
   const std::string catalog = (dir / "catalog.sqlite").string();
@@ -685,6 +744,28 @@ TEST(TrainCli, TrainsOnTheCatalogsLabelsWithoutScenesAndDiscoverRanksWithTheMode
             std::string::npos)
       << r.out;
   EXPECT_NE(r.out.find("chosen        C="), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("held out      AP "), std::string::npos) << r.out;
+  // info knows the catalog, the model and the results folder.
+  const ProcessResult catalog_info = objscan({"info", catalog});
+  ASSERT_EQ(catalog_info.exit_code, 0) << catalog_info.err;
+  EXPECT_NE(catalog_info.out.find("catalog (objscan, SQLite"), std::string::npos)
+      << catalog_info.out;
+  EXPECT_NE(catalog_info.out.find("scenes        2 "), std::string::npos) << catalog_info.out;
+  EXPECT_NE(catalog_info.out.find(std::to_string(objects + not_objects) + ": " +
+                                  std::to_string(objects) + " object, "),
+            std::string::npos)
+      << catalog_info.out;
+  const ProcessResult model_info = objscan({"info", (dir / "model.yml").string()});
+  ASSERT_EQ(model_info.exit_code, 0) << model_info.err;
+  EXPECT_NE(model_info.out.find("objectness model"), std::string::npos) << model_info.out;
+  EXPECT_NE(model_info.out.find("rbf_svm (C="), std::string::npos) << model_info.out;
+  EXPECT_NE(model_info.out.find("cross-validated AP"), std::string::npos) << model_info.out;
+  const ProcessResult results_info = objscan({"info", (dir / "found").string()});
+  ASSERT_EQ(results_info.exit_code, 0) << results_info.err;
+  EXPECT_NE(results_info.out.find("results folder"), std::string::npos) << results_info.out;
+  EXPECT_NE(results_info.out.find("catalog.sqlite"), std::string::npos) << results_info.out;
+  EXPECT_NE(results_info.out.find("holds         objects, settings.json"), std::string::npos)
+      << results_info.out;
 
   writePly(dir / "test.ply",
            table({{-0.2f, 0.0f, 0.06f, 0.06f, 1, false}, {0.2f, 0.0f, 0.036f, 0.12f, 2, false}}));

@@ -1,4 +1,4 @@
-// Faults on objscan's outputs (Step L): `fuse`, `discover`, `scan` and `record` killed with
+// Faults on objscan's outputs (the fault audit): `fuse`, `discover`, `scan` and `record` killed with
 // SIGKILL at random moments, run under a tiny file-size limit and on a full disk, and run twice at
 // once on one results folder or one catalog. After each, every output file present must be
 // complete and valid (read by objscan's own readers, the catalog through SQLite's integrity check,

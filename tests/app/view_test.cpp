@@ -9,6 +9,7 @@
 #include <poll.h>
 #include <sqlite3.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -519,25 +520,126 @@ TEST(ViewServer, FoldersWithoutResultsOrWithDamagedFilesSayWhat) {
     EXPECT_NE(view->err().find("labelling is off"), std::string::npos) << view->err();
     EXPECT_EQ(fs::file_size(dir / "empty.sqlite"), 0u);
   }
+  // A FIFO named as the catalog is neither "missing" nor opened (it would block).
+  ASSERT_EQ(mkfifo((dir / "fifo").c_str(), 0600), 0);
+  {
+    int port = 0;
+    auto view = startView(res, &port, {"--catalog", (dir / "fifo").string()});
+    ASSERT_GT(port, 0);
+    const json results = jsonOf(get(port, "/api/results"));
+    EXPECT_NE(results.value("labelling_off", "").find("is not a regular file"), std::string::npos)
+        << results.dump();
+    view->signal(SIGINT);
+    EXPECT_EQ(view->wait(10), 0);
+    // No scene can be labelled, and the terminal does not say one is.
+    EXPECT_NE(view->out().find("(1 can be shown, 0 can be labelled)"), std::string::npos)
+        << view->out();
+  }
   // A cut hypotheses.json: one error line naming it.
   fs::copy(res, dir / "cut", fs::copy_options::recursive);
   const std::string text = readWholeFile(res / "hypotheses.json");
   testing::writeBytes(dir / "cut" / "hypotheses.json", text.substr(0, text.size() / 2));
   testing::expectOneErrorLine(objscan({"view", (dir / "cut").string(), "--serve", "0"}), 2,
                               "hypotheses.json");
-  // A damaged mesh: the viewer still starts, says so on the terminal and in the page's data.
+  // A damaged mesh, the folder's only scene: nothing to show, so one error line naming it and
+  // exit 2 (not an empty page and exit 0).
   const std::string mesh = readWholeFile(res / "mesh.ply");
   testing::writeBytes(res / "mesh.ply", mesh.substr(0, mesh.size() / 3));
-  int port = 0;
-  auto view = startView(res, &port);
-  ASSERT_GT(port, 0);
-  const json results = jsonOf(get(port, "/api/results"));
-  ASSERT_TRUE(results["scenes"][0].contains("error")) << results.dump();
-  EXPECT_NE(results["scenes"][0]["error"].get<std::string>().find("mesh.ply"), std::string::npos);
-  EXPECT_EQ(get(port, "/api/scenes/0/mesh").status, 404);
-  view->signal(SIGINT);
-  EXPECT_EQ(view->wait(10), 0);
-  EXPECT_NE(view->err().find("cannot be shown"), std::string::npos) << view->err();
+  const ProcessResult damaged =
+      objscan({"view", res.string(), "--serve", "127.0.0.1:0", "--serve-wait", "60"});
+  EXPECT_EQ(damaged.exit_code, 2) << damaged.out << damaged.err;
+  // Besides the progress line: one error line, and no warning saying the same first.
+  std::size_t errors = 0;
+  for (const std::string& l : testing::lines(damaged.err)) {
+    errors += l.rfind("objscan: error: ", 0) == 0 ? 1 : 0;
+    EXPECT_EQ(l.find("warning"), std::string::npos) << l;
+  }
+  EXPECT_EQ(errors, 1u) << damaged.err;
+  EXPECT_NE(damaged.err.find("no scene can be shown"), std::string::npos) << damaged.err;
+  EXPECT_NE(damaged.err.find("mesh.ply"), std::string::npos) << damaged.err;
+}
+
+/// An organized PCD of a 64 x 48 pinhole view (f 60 px) of a floor 1 m away with a 20 cm box on
+/// it, ASCII: what a depth camera's single view is saved as.
+std::string pcdOfABoxOnAFloor() {
+  constexpr int kWidth = 64, kHeight = 48;
+  std::string text =
+      "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z rgba\nSIZE 4 4 4 4\nTYPE F F F U\n"
+      "COUNT 1 1 1 1\nWIDTH 64\nHEIGHT 48\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 3072\nDATA ascii\n";
+  for (int v = 0; v < kHeight; ++v) {
+    for (int u = 0; u < kWidth; ++u) {
+      const bool box = std::abs(u - 32) < 10 && std::abs(v - 24) < 10;
+      const float z = box ? 0.8f : 1.0f;
+      char line[96];
+      std::snprintf(line, sizeof line, "%.5f %.5f %.5f %u\n", (u - 31.5f) * z / 60.0f,
+                    (v - 23.5f) * z / 60.0f, z, box ? 0xffc02020u : 0xff808080u);
+      text += line;
+    }
+  }
+  return text;
+}
+
+TEST(ViewServer, ShowsAndRendersDiscoverResultsOfAPcdViewAndOfAFrame) {
+  TempDir dir;
+  const fs::path& scan = scannedScene();
+  testing::writeBytes(dir / "view.pcd", pcdOfABoxOnAFloor());
+  const std::string catalog = (dir / "cat.sqlite").string();
+  // info describes the PCD as discover reads it.
+  const ProcessResult info = objscan({"info", (dir / "view.pcd").string()});
+  EXPECT_EQ(info.exit_code, 0) << info.err;
+  EXPECT_NE(info.out.find("point cloud (PCD"), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("3072, organized (64 x 48), 3072 with a reading; colours: yes"),
+            std::string::npos)
+      << info.out;
+  ProcessResult r = objscan({"discover", (dir / "view.pcd").string(), "--catalog", catalog,
+                             "--out", (dir / "pcd").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  r = objscan({"discover", (scan / "syn").string(), "--frame", "3", "--catalog", catalog, "--out",
+               (dir / "frame").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  for (const char* name : {"pcd", "frame"}) {
+    SCOPED_TRACE(name);
+    const fs::path res = dir / name;
+    // Discover wrote the mesh it worked on, and noted it.
+    const json hypotheses = json::parse(readWholeFile(res / "hypotheses.json"));
+    ASSERT_EQ(hypotheses["scenes"][0].value("mesh_copy", ""), "scenes/scene_001.ply");
+    EXPECT_EQ(readPly(res / "scenes" / "scene_001.ply").positions.size(),
+              hypotheses["scenes"][0]["vertices"].get<std::size_t>());
+    int port = 0;
+    auto view = startView(res, &port);
+    ASSERT_GT(port, 0);
+    const json results = jsonOf(get(port, "/api/results"));
+    EXPECT_FALSE(results["scenes"][0].contains("error")) << results.dump();
+    // Found in the catalog by its source's hash, not the copy's: it can be labelled.
+    EXPECT_TRUE(results["scenes"][0]["labelling"].get<bool>()) << results.dump();
+    EXPECT_EQ(get(port, "/api/scenes/0/mesh").status, 200);
+    view->signal(SIGINT);
+    EXPECT_EQ(view->wait(10), 0);
+    EXPECT_NE(view->out().find("1 can be shown, 1 can be labelled"), std::string::npos)
+        << view->out();
+    EXPECT_EQ(view->err().find("cannot be shown"), std::string::npos) << view->err();
+    r = objscan({"render", res.string(), "--top", "1"});
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_TRUE(fs::is_regular_file(res / "renders" / "overview.png"));
+  }
+  // The copy removed: one error line naming it, exit 2, and what to do.
+  fs::remove_all(dir / "pcd" / "scenes");
+  const ProcessResult removed = objscan({"render", (dir / "pcd").string()});
+  EXPECT_EQ(removed.exit_code, 2) << removed.err;
+  EXPECT_NE(removed.err.find("view.pcd: is not a PLY file, and the copy of the mesh made from it, " +
+                             (dir / "pcd" / "scenes" / "scene_001.ply").string() +
+                             ", is missing: run objscan discover again"),
+            std::string::npos)
+      << removed.err;
+  // A folder from before the copies were written: the same, saying so.
+  json before = json::parse(readWholeFile(dir / "pcd" / "hypotheses.json"));
+  before["scenes"][0].erase("mesh_copy");
+  std::ofstream(dir / "pcd" / "hypotheses.json") << before.dump();
+  const ProcessResult old = objscan({"render", (dir / "pcd").string()});
+  EXPECT_EQ(old.exit_code, 2) << old.err;
+  EXPECT_NE(old.err.find("view.pcd: is not a PLY file, and the results folder holds no copy"),
+            std::string::npos)
+      << old.err;
 }
 
 #else  // OBJSCAN_VIEW_PAGE_TEST
@@ -734,22 +836,85 @@ TEST(ViewPage, DrawsSelectsAndLabelsInChromiumAndTrainUsesTheLabels) {
 }
 
 TEST(ViewPage, ADamagedMeshIsSaidInThePage) {
+  // Two scenes, the second damaged after discover: the viewer serves the first, and the page says
+  // why the second cannot be shown when it is picked (a folder with no scene to show is an error, exit 2).
   TempDir dir;
-  const fs::path res = freshCopy(dir);
-  const std::string mesh = readWholeFile(res / "mesh.ply");
-  testing::writeBytes(res / "mesh.ply", mesh.substr(0, mesh.size() / 3));
+  const fs::path& scan = scannedScene();
+  fs::copy_file(scan / "res" / "mesh.ply", dir / "desk.ply");
+  writePly(dir / "mound.ply", testing::makeHeightField(120, 0.3f, [](float x, float y) {
+             return 0.05f * std::max(0.0f, 1.0f - (x * x + y * y) / 0.01f);
+           }));
+  const ProcessResult r = objscan({"discover", (dir / "desk.ply").string(),
+                                   (dir / "mound.ply").string(), "--no-catalog", "--out",
+                                   (dir / "res").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string mesh = readWholeFile(dir / "mound.ply");
+  testing::writeBytes(dir / "mound.ply", mesh.substr(0, mesh.size() / 3));
+  const fs::path res = dir / "res";
   int port = 0;
   auto view = startView(res, &port);
   ASSERT_GT(port, 0);
   testing::ChromiumPage page;
   ASSERT_TRUE(page.ok());
   page.navigate("http://127.0.0.1:" + std::to_string(port) + "/");
+  ASSERT_TRUE(page.waitFor("document.body.getAttribute('data-state') === 'ready'", 60));
+  EXPECT_NE(page.evaluate("document.getElementById('scene').options[1].textContent")
+                .get<std::string>()
+                .find("(cannot be shown)"),
+            std::string::npos);
+  page.evaluate(
+      "(function () { var s = document.getElementById('scene'); s.value = '1';"
+      " s.dispatchEvent(new Event('change')); return true; })()");
   ASSERT_TRUE(page.waitFor("document.body.getAttribute('data-state') === 'error'", 30));
   const std::string shown = page.evaluate("document.getElementById('message').textContent");
   EXPECT_NE(shown.find("cannot be shown"), std::string::npos) << shown;
-  EXPECT_NE(shown.find("mesh.ply"), std::string::npos) << shown;
+  EXPECT_NE(shown.find("mound.ply"), std::string::npos) << shown;
   view->signal(SIGINT);
   EXPECT_EQ(view->wait(10), 0);
+}
+
+TEST(ViewPage, AGlbObjectStandsUpInThreeJsGltfLoader) {
+  // glTF is Y-up. A mound on a z-up table, exported as GLB and loaded by three.js's own glTF
+  // reader (Debian's libjs-three): its height must come out along +Y, top up.
+  TempDir dir;
+  writePly(dir / "mound.ply", testing::makeHeightField(120, 0.3f, [](float x, float y) {
+             return 0.05f * std::max(0.0f, 1.0f - (x * x + y * y) / 0.01f);
+           }));
+  const ProcessResult r = objscan({"discover", (dir / "mound.ply").string(), "--no-catalog",
+                                   "--object-format", "glb", "--out", (dir / "res").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const TriangleMesh scene = readPly(dir / "mound.ply");
+  const json first = json::parse(readWholeFile(dir / "res" / "hypotheses.json"))["hypotheses"][0];
+  float low = INFINITY, high = -INFINITY;
+  for (const std::int32_t v : first["vertices"].get<std::vector<std::int32_t>>()) {
+    low = std::min(low, scene.positions[static_cast<std::size_t>(v)].z());
+    high = std::max(high, scene.positions[static_cast<std::size_t>(v)].z());
+  }
+  ASSERT_GT(high - low, 0.01f);  // the mound's rise, in metres
+  const std::string glb = readWholeFile(dir / "res" / first["file"].get<std::string>());
+  std::string bytes;
+  for (const char c : glb) bytes += std::to_string(static_cast<unsigned char>(c)) + ",";
+  const std::string three = "/usr/share/javascript/three/";
+  testing::writeBytes(
+      dir / "page.html",
+      "<!doctype html><script src=\"" + testing::fileUrl(three + "three.min.js") +
+          "\"></script><script src=\"" +
+          testing::fileUrl(three + "examples/js/loaders/GLTFLoader.js") +
+          "\"></script><script>var GLB = new Uint8Array([" + bytes + "]);</script>");
+  testing::ChromiumPage page;
+  ASSERT_TRUE(page.ok());
+  page.navigate(testing::fileUrl(dir / "page.html"));
+  const json box = page.evaluate(R"(new Promise(function (done) {
+    new THREE.GLTFLoader().parse(GLB.buffer, '', function (gltf) {
+      gltf.scene.updateMatrixWorld(true);
+      var b = new THREE.Box3().setFromObject(gltf.scene);
+      done({min: [b.min.x, b.min.y, b.min.z], max: [b.max.x, b.max.y, b.max.z]});
+    }, function (e) { done({error: String(e)}); });
+  }))");
+  ASSERT_TRUE(box.contains("min")) << box.dump() << page.console();
+  // In three.js's world (Y up) the mound rises along +Y from its rim to its top, as on the table.
+  EXPECT_NEAR(box["min"][1].get<float>(), low, 1e-4f) << box.dump();
+  EXPECT_NEAR(box["max"][1].get<float>(), high, 1e-4f) << box.dump();
 }
 
 TEST(ViewPage, TheReportsInlineViewDrawsOfflineAndLinksTheViewerWhenServed) {
@@ -782,6 +947,35 @@ TEST(ViewPage, TheReportsInlineViewDrawsOfflineAndLinksTheViewerWhenServed) {
   EXPECT_GT(drawn.get<double>(), 0.05) << "the inline view is (nearly) blank";
   EXPECT_EQ(page.evaluate("document.body.getAttribute('data-errors')"), "0") << page.console();
   EXPECT_EQ(page.evaluate("document.querySelector('#viewer-link a') === null"), true);
+  // The best five painted, as the pictures paint them (scan's default --top, five close-ups),
+  // rank 1 in the palette's red; the rest (about 460 on a fused desk) only when asked.
+  const std::string paint = R"((function (all) {
+    var v = document.getElementById('mesh-view').meshView, m = v.mesh, box = document.getElementById('mesh-all');
+    if (box.checked !== all) box.click();
+    var out = {top: document.getElementById('mesh-view').getAttribute('data-paint-top'),
+               painted: {}, unpainted: 0, red: 0, ones: 0};
+    for (var i = 0; i < m.vertices; ++i) {
+      var r = m.ranks[i];
+      if (r === 0) continue;
+      if (v.painted(r)) out.painted[r] = true; else ++out.unpainted;
+      if (r === 1) {
+        ++out.ones;
+        var c = v.colourArray;  // 65 % of the palette's red over the vertex colour
+        if (c[3 * i] > c[3 * i + 1] && c[3 * i] > c[3 * i + 2]) ++out.red;
+      }
+    }
+    out.painted = Object.keys(out.painted).length;
+    return out;
+  }))";
+  const json top = page.evaluate(paint + "(false)");
+  EXPECT_EQ(top["top"], "5") << top.dump();
+  EXPECT_EQ(top["painted"], 5) << top.dump();
+  EXPECT_GT(top["unpainted"].get<int>(), 0) << top.dump();
+  EXPECT_GT(top["ones"].get<int>(), 0) << top.dump();
+  EXPECT_EQ(top["red"], top["ones"]) << top.dump();
+  const json all = page.evaluate(paint + "(true)");
+  EXPECT_EQ(all["unpainted"], 0) << all.dump();
+  EXPECT_GT(all["painted"].get<int>(), 5) << all.dump();
 
   // Served by objscan view, the same report links the viewer.
   int port = 0;

@@ -248,7 +248,7 @@ TEST(SevenScenesFolder, BadImagesAreInputErrorsNamingTheImage) {
 }
 
 // A header that declares a huge image is refused on the size it declares, before the decoder
-// allocates for it (found by the Step L audit: a 90-byte PNG declaring 32768x32768 made OpenCV
+// allocates for it (found by the hostile-input audit: a 90-byte PNG declaring 32768x32768 made OpenCV
 // allocate 2 GB). A PNG's IHDR and a JPEG's SOF both say the size.
 TEST(SevenScenesFolder, ImagesDeclaringAnotherSizeAreRefusedBeforeDecoding) {
   TempDir dir;

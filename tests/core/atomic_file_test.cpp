@@ -70,7 +70,7 @@ TEST(AtomicFile, AFileNamedNearTheNameLimitIsWritten) {
   EXPECT_EQ(testing::entryCount(dir.path()), 1u);
 }
 
-// What a run killed mid-write leaves (Step L): the next run into the folder removes it, but not
+// What a run killed mid-write leaves (the fault audit): the next run into the folder removes it, but not
 // a temporary of a process that still runs, nor files that only look alike.
 TEST(AtomicFile, StaleTemporariesOfDeadWritersAreRemoved) {
   testing::TempDir dir;

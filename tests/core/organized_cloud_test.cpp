@@ -181,7 +181,7 @@ TEST(Pcd, BadFilesGetOneClearError) {
                          "pcd_ascii_rgb_past_32_bits.pcd";
   expectInputError([&] { readPcd(found); }, found, "does not fit its 32-bit field");
   // Declared counts the data cannot hold are refused before anything is allocated for them (the
-  // Step L audit: 117 bytes of ascii PCD had the reader allocate 1.6 GB, 131 bytes of
+  // The hostile-input audit: 117 bytes of ascii PCD had the reader allocate 1.6 GB, 131 bytes of
   // binary_compressed 1.2 GB).
   const std::string huge =
       "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\n"

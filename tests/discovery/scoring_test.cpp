@@ -5,6 +5,7 @@
 #include <functional>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <stdexcept>
@@ -301,6 +302,60 @@ TEST(ObjectnessModel, TrainingRejectsTooFewExamplesOfAClass) {
                std::invalid_argument);
   EXPECT_THROW(scoreKindFromString("svm"), std::invalid_argument);
   EXPECT_EQ(scoreKindFromString("rbf_svm"), ScoreKind::kRbfSvm);
+}
+
+TEST(LeaveOneSceneOut, EqualsTrainingOnTheOtherScenesByHandAndSkipsWhatCannotTrain) {
+  // Three "scenes" of separable blobs: the held-out scores are those of a model trained on the
+  // other two, scene by scene (the brute-force reference), ranked together.
+  std::vector<MeasureRow> rows, part;
+  std::vector<int> labels, part_labels;
+  std::vector<std::size_t> scene_of;
+  for (std::size_t s = 0; s < 3; ++s) {
+    blobData(static_cast<std::uint32_t>(10 + s), 60, part, part_labels);
+    rows.insert(rows.end(), part.begin(), part.end());
+    labels.insert(labels.end(), part_labels.begin(), part_labels.end());
+    scene_of.insert(scene_of.end(), part.size(), s);
+  }
+  const HeldOutScenes held = leaveOneSceneOut(ScoreKind::kLinearSvm, MeasureNormaliser{}, rows,
+                                              labels, scene_of);
+  EXPECT_EQ(held.scenes, 3u);
+  EXPECT_EQ(held.skipped, 0u);
+  EXPECT_EQ(held.rows, rows.size());
+  std::vector<double> scores;
+  std::vector<int> truth;
+  for (std::size_t s = 0; s < 3; ++s) {
+    std::vector<MeasureRow> train;
+    std::vector<int> ytrain;
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      if (scene_of[i] != s) {
+        train.push_back(rows[i]);
+        ytrain.push_back(labels[i]);
+      }
+    }
+    const ObjectnessModel m =
+        ObjectnessModel::train(ScoreKind::kLinearSvm, MeasureNormaliser{}, train, ytrain);
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      if (scene_of[i] == s) {
+        scores.push_back(m.scoreNormalised(rows[i]));
+        truth.push_back(labels[i]);
+      }
+    }
+  }
+  EXPECT_DOUBLE_EQ(held.ap, averagePrecision(scores, truth));
+  EXPECT_GE(held.ap, 0.95);  // two unit Gaussians 2 apart in 6-D, as above
+  EXPECT_DOUBLE_EQ(held.min_score, *std::min_element(scores.begin(), scores.end()));
+  EXPECT_DOUBLE_EQ(held.max_score, *std::max_element(scores.begin(), scores.end()));
+  // One scene: nothing to hold out. A scene whose removal leaves too few objects: skipped.
+  const HeldOutScenes one = leaveOneSceneOut(ScoreKind::kLinearSvm, MeasureNormaliser{}, rows,
+                                             labels, std::vector<std::size_t>(rows.size(), 0));
+  EXPECT_EQ(one.scenes, 0u);
+  EXPECT_TRUE(std::isnan(one.ap));
+  std::vector<int> few = labels;
+  for (std::size_t i = 0; i < few.size(); ++i) few[i] = scene_of[i] == 0 ? few[i] : 0;
+  const HeldOutScenes skipped =
+      leaveOneSceneOut(ScoreKind::kLinearSvm, MeasureNormaliser{}, rows, few, scene_of);
+  EXPECT_EQ(skipped.scenes, 2u);  // scenes 1 and 2 (trained on scene 0's objects)
+  EXPECT_EQ(skipped.skipped, 1u);
 }
 
 }  // namespace

@@ -1,5 +1,5 @@
 // Fusion on real captures (../shared/data) and on the full-size synthetic desk, against ground
-// truth. Step D's accuracy targets: TUM fr2/desk 50 frames ATE <= 2 cm (label data, every CI run);
+// truth. The fusion accuracy targets: TUM fr2/desk 50 frames ATE <= 2 cm (label data, every CI run);
 // 7-Scenes 300 frames ATE <= 3 cm, and the synthetic desk (noise on, 300 frames, 5.9 mm voxels)
 // ATE <= 1 cm, mesh accuracy <= 3 mm, completeness >= 95 % (label accuracy, opt-in: about two
 // minutes; `scripts/test -- -L accuracy`).

@@ -533,7 +533,7 @@ TEST(Fusion, TracksASyntheticHandHeldSequenceWithNoise) {
   EXPECT_EQ(fusion->framesLost(), 0u);
   EXPECT_EQ(fusion->trajectory().size(), 45u);
   const TrajectoryError ate = absoluteTrajectoryError(fusion->trajectory(), truth);
-  // Step D's target for the full 640x480, 300-frame run is 1 cm; this short low-resolution run
+  // The fusion accuracy target for the full 640x480, 300-frame run is 1 cm; this short low-resolution run
   // must meet it too.
   EXPECT_LT(ate.rmse_m, 0.01);
   const TriangleMesh mesh = extractMesh(fusion->volume());

@@ -1,5 +1,8 @@
 #pragma once
 
+#include <cstddef>
+#include <filesystem>
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -24,6 +27,29 @@ std::string extensionOf(MeshFormat format);
 
 /// The file's bytes. PLY is binary little-endian (encodePly). Throws std::invalid_argument for a
 /// mesh that fails TriangleMesh::validate().
-std::string encodeMesh(const TriangleMesh& mesh, MeshFormat format);
+///
+/// `up`: the scene's up direction in the mesh's frame (sceneUp of the scene an object was cut
+/// from). glTF is Y-up (its specification: "+Y is up"), so a GLB's one node then carries the
+/// rotation that turns `up` onto +Y, and the object stands in any glTF viewer as it stood in the
+/// scene; without it, an object of a z-up scene lies on its back. The positions stay in the
+/// mesh's frame (objects/rank_NNN.json's T_W_O holds for them). PLY, OBJ and STL have no
+/// convention of up and ignore it.
+std::string encodeMesh(const TriangleMesh& mesh, MeshFormat format,
+                       const std::optional<Eigen::Vector3f>& up = std::nullopt);
+
+/// What `objscan info` says of an OBJ, STL or GLB file: counted from the file, not a mesh.
+struct MeshFileSummary {
+  MeshFormat format = MeshFormat::kObj;
+  std::size_t vertices = 0;   ///< STL: three per triangle (STL shares none)
+  std::size_t triangles = 0;  ///< 0: points
+  bool normals = false, colours = false;
+  Eigen::AlignedBox3f bounds;  ///< of the positions as stored (before a glTF node's transform)
+  /// GLB only: the first node's "rotation" (x, y, z, w), as a viewer applies it; nothing: none.
+  std::optional<Eigen::Quaternionf> node_rotation;
+};
+
+/// Reads an OBJ, binary STL or GLB file far enough to count and bound it (the format from the
+/// extension). Throws InputError naming the file when it is cut short or not of that format.
+MeshFileSummary summarizeMeshFile(const std::filesystem::path& path);
 
 }  // namespace objscan

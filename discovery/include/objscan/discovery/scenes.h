@@ -101,6 +101,7 @@ struct SceneDiscoveryOptions {
 struct DiscoveredScene {
   std::string name;  ///< SceneInput::name
   TriangleMesh mesh;
+  std::string content_hash;    ///< SceneInput::content_hash
   SceneCandidates candidates;  ///< recurrence filled in
   bool from_catalog = false;   ///< candidates and measures read from the catalog, not computed
   std::int64_t scene_id = 0;   ///< in the catalog, or the scene's index without one
@@ -152,6 +153,7 @@ struct CatalogTrainingSet {
   std::vector<ShapeMeasures> measures;  ///< recurrence filled in
   std::vector<int> labels;              ///< 1 object, 0 not
   std::vector<std::int64_t> segment_ids;
+  std::vector<std::size_t> scene_of;  ///< per row, its scene (0 to scenes - 1)
   std::size_t scenes = 0;  ///< scenes with at least one label used
   std::size_t unsure = 0;  ///< left out: unsure
   /// Left out: labelled segments of scenes measured with other settings.

@@ -3,6 +3,7 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -98,6 +99,31 @@ class ObjectnessModel {
   explicit ObjectnessModel(std::shared_ptr<const Impl> impl) : impl_(std::move(impl)) {}
   std::shared_ptr<const Impl> impl_;
 };
+
+/// What a trained kind does on scenes it has not seen (leaveOneSceneOut).
+struct HeldOutScenes {
+  std::size_t scenes = 0;   ///< scenes held out in turn and scored
+  std::size_t skipped = 0;  ///< scenes not held out: the others had too few of a class to train
+  std::size_t rows = 0;     ///< segments scored by a model trained without their scene
+  /// averagePrecision of those scores, all held-out scenes ranked together; NaN without rows or
+  /// without an object among them.
+  double ap = std::numeric_limits<double>::quiet_NaN();
+  double min_score = std::numeric_limits<double>::quiet_NaN();  ///< the held-out scores' spread
+  double max_score = std::numeric_limits<double>::quiet_NaN();
+};
+
+/// Leave-one-scene-out: for each of at most `max_scenes` scenes (spread evenly over them, in
+/// order), trains `kind` as ObjectnessModel::train does (its grid search included) on the rows
+/// of the other scenes and scores the scene's own rows. `scene_of` gives each row's scene
+/// (any ids). A scene whose removal leaves fewer than config.folds of a class is skipped. The
+/// cross-validated AP of train() draws its folds from the same scenes it trains on; this says
+/// what the model does on a scene it has never seen, as it is used.
+HeldOutScenes leaveOneSceneOut(ScoreKind kind, const MeasureNormaliser& normaliser,
+                               const std::vector<MeasureRow>& normalised_rows,
+                               const std::vector<int>& labels,
+                               const std::vector<std::size_t>& scene_of,
+                               const MeasureMask& mask = kAllMeasures,
+                               const TrainConfig& config = {}, std::size_t max_scenes = 10);
 
 /// Average precision of `scores` against `labels` (1 = positive): the mean, over the positives,
 /// of the precision at each one's rank. Ties are broken against the positives, so a tie never

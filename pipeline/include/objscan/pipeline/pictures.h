@@ -15,7 +15,7 @@
 namespace objscan::pipeline {
 
 struct PictureOptions {
-  std::size_t top = 5;             ///< hypotheses painted and shown in close-up
+  std::size_t top = report::kDefaultPaintedTop;  ///< hypotheses painted and shown in close-up
   int width = 1280, height = 960;  ///< the overview; close-ups are 3/8 of it on each side
   render::ViewKind view = render::ViewKind::kAuto;
   /// Also the 16-bit rank image (overview_ranks.png): each pixel the rank painted there (0: none),

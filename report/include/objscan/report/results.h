@@ -62,6 +62,14 @@ struct SceneRecord {
   /// and be rendered from any working directory); as given to discovery when it names no file.
   std::string mesh;
   std::string mesh_absolute;  ///< the same file's absolute path; empty when it names no file
+  /// The mesh discovery worked on, written into the folder (scenes/scene_NNN.ply, relative to
+  /// it) when the scene is not a PLY file: a PCD view or a frame of a source become meshes only
+  /// once objscan has read them, and view and render show this one. Empty for a PLY scene.
+  std::string mesh_copy;
+  /// The scene's content hash as the catalog knows it (SceneInput::content_hash: of the PCD
+  /// file, or of the frame's depth, colour and camera); noted with mesh_copy, by which the viewer
+  /// finds the scene in the catalog. Empty otherwise.
+  std::string content_hash;
   std::optional<std::size_t> vertices, faces, candidates, hypotheses;
   bool from_catalog = false;
   /// The scene's id in the catalog the run used (CatalogUse::path); nothing without a catalog, or
@@ -149,6 +157,10 @@ struct OverviewCamera {
   Pose T_W_C = Pose::Identity();  ///< camera x right, y down, z forward, metres
   Intrinsics intrinsics;
 };
+
+/// How many of the best hypotheses the pictures paint (and close up) unless told otherwise
+/// (render and scan --top); the 3-D views paint as many, in the same colours.
+inline constexpr std::size_t kDefaultPaintedTop = 5;
 
 /// renders/: the pictures of the top hypotheses.
 struct Pictures {

@@ -24,6 +24,8 @@ inline constexpr const char* kMeshFile = "mesh.ply";
 inline constexpr const char* kTrajectoryFile = "trajectory.txt";
 inline constexpr const char* kHypothesesFile = "hypotheses.json";
 inline constexpr const char* kObjectsFolder = "objects";
+/// The meshes of scenes that are not PLY files (SceneRecord::mesh_copy): scene_NNN.ply.
+inline constexpr const char* kScenesFolder = "scenes";
 inline constexpr const char* kEvaluationFile = "evaluation.json";
 inline constexpr const char* kRendersFolder = "renders";
 inline constexpr const char* kTimingsFile = "timings.json";
@@ -48,8 +50,9 @@ Hypotheses hypothesesFrom(const discovery::SceneDiscovery& run, const std::strin
 
 /// Writes DIR/objects/rank_NNN.<format> (each hypothesis's sub-mesh of run.scenes[...].mesh, in
 /// the format hypothesesFrom named) and rank_NNN.json (its box and its pose T_W_O: the object
-/// frame at the box centre, along the box axes) staged, then DIR/hypotheses.json, then swaps
-/// objects/ in: a failure before the swap leaves the previous run's pair as it was.
+/// frame at the box centre, along the box axes) staged, and DIR/scenes/scene_NNN.ply for each
+/// scene with a SceneRecord::mesh_copy, then DIR/hypotheses.json, then swaps objects/ and
+/// scenes/ in: a failure before the swap leaves the previous run's files as they were.
 void writeDiscovery(const std::filesystem::path& dir, const Hypotheses& hypotheses,
                     const discovery::SceneDiscovery& run, MeshFormat format = MeshFormat::kPly);
 
@@ -79,6 +82,9 @@ void writePictures(const std::filesystem::path& dir, const Pictures& pictures);
 /// Reads DIR/renders/'s pictures (those present; the close-ups of `ranks`) and its camera.
 /// InputError for a file that is not a PNG, or a camera file of the wrong shape.
 Pictures readPictures(const std::filesystem::path& dir, const std::vector<std::size_t>& ranks);
+/// How many of the best hypotheses DIR's pictures paint: its close-ups (renders/rank_001.png and
+/// on, while they follow each other); kDefaultPaintedTop when it has none (not rendered yet).
+std::size_t paintedTop(const std::filesystem::path& dir);
 /// renders/overview_camera.json's reader. Throws InputError naming the file when it is missing or
 /// damaged.
 OverviewCamera readOverviewCamera(const std::filesystem::path& file);
@@ -107,7 +113,8 @@ struct ResultsParts {
   std::size_t max_closeups = 50;
 };
 
-/// The places the mesh of `scene` (a scene of DIR/hypotheses.json) may be, in order: the folder's
+/// The places the mesh of `scene` (a scene of DIR/hypotheses.json) may be, in order: the copy
+/// discover wrote of a scene that is not a PLY file (SceneRecord::mesh_copy), the folder's
 /// own mesh.ply (scan writes it there), the path discover noted relative to the folder, its
 /// absolute path (the folder moved without its scene), and (a folder from before paths were
 /// relative) the path as it was given, from the working directory.
