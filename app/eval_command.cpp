@@ -6,6 +6,7 @@
 #include <iomanip>
 #include <map>
 #include <memory>
+#include <set>
 #include <sstream>
 #include <utility>
 
@@ -332,6 +333,11 @@ namespace {
 constexpr std::size_t kTrustedLabelsPerClass = 30;
 
 /// Warns when the labels are too few to trust the model (kTrustedLabelsPerClass, one scene).
+/// How many different values `v` holds.
+std::size_t distinctCount(const std::vector<std::size_t>& v) {
+  return std::set<std::size_t>(v.begin(), v.end()).size();
+}
+
 void warnIfTooFew(std::size_t objects, std::size_t not_objects, std::size_t scenes) {
   if (objects < kTrustedLabelsPerClass || not_objects < kTrustedLabelsPerClass) {
     log::warning("too few labels to trust this model: " + std::to_string(objects) +
@@ -433,7 +439,8 @@ int trainOnCatalogLabels(const TrainCommandOptions& options, discovery::ScoreKin
               set.labels.size());
   printChosen(options, model);
   printHeldOut(kind, set.normaliser, set.measures, set.labels, set.scene_of, config);
-  warnIfTooFew(objects, not_objects, set.scenes);
+  // The scenes the labels used come from, not every scene with a label (unsure ones add none).
+  warnIfTooFew(objects, not_objects, distinctCount(set.scene_of));
   return kExitSuccess;
 }
 
@@ -456,7 +463,7 @@ int runTrain(const TrainCommandOptions& options) {
               options.min_iou);
   printChosen(options, model);
   printHeldOut(kind, set.normaliser, segs.measures, labels, segs.scene, config);
-  warnIfTooFew(objects, labels.size() - objects, set.scenes.size());
+  warnIfTooFew(objects, labels.size() - objects, distinctCount(segs.scene));
   return kExitSuccess;
 }
 

@@ -12,7 +12,8 @@
 /// request size cap and connection timeout are run-time options, which is what keeps many, slow
 /// or huge requests away from the work; a shared library, so Debian's security fixes reach objscan
 /// without a rebuild (cpp-httplib is header-only; Boost.Beast is a toolkit, not a server).
-/// docs/live.md has the choice in full. civetweb stays inside http_server.cpp.
+/// docs/live.md has the choice in full. civetweb stays inside http_server.cpp and, for query
+/// values, http_query.cpp.
 ///
 /// What every route gets from it: a request whose Host is not the server's own is refused (403:
 /// DNS rebinding); a path with an encoded NUL or other control character, an encoded slash or

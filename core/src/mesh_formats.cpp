@@ -5,13 +5,13 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
-#include <fstream>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
 
 #include <nlohmann/json.hpp>
 
+#include "objscan/core/atomic_file.h"
 #include "objscan/core/byte_writing.h"
 #include "objscan/core/error.h"
 #include "objscan/core/file_names.h"
@@ -245,15 +245,9 @@ T littleEndianAt(const std::string& bytes, std::size_t offset) {
   return std::bit_cast<T>(bits);
 }
 
-/// At most 2 GB: what objscan writes stays far below; larger is not a mesh to count in memory.
-std::string readMeshFileBytes(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path, "cannot be opened");
-  std::ostringstream bytes;
-  bytes << in.rdbuf();
-  if (in.bad()) throw InputError(path, "cannot be read");
-  return std::move(bytes).str();
-}
+/// The largest object file summarizeMeshFile reads: what objscan writes stays far below; a larger
+/// file is not a mesh to count in memory.
+constexpr std::uintmax_t kMaxMeshFileBytes = std::uintmax_t{2} << 30;
 
 void summarizeObj(const std::filesystem::path& path, const std::string& text,
                   MeshFileSummary& out) {
@@ -361,19 +355,20 @@ void summarizeGlb(const std::filesystem::path& path, const std::string& bytes,
 
 MeshFileSummary summarizeMeshFile(const std::filesystem::path& path) {
   const std::string extension = lowercaseExtension(path);
+  if (extension != ".obj" && extension != ".stl" && extension != ".glb") {
+    throw InputError(path, "is not named .obj, .stl or .glb");
+  }
   MeshFileSummary out;
-  const std::string bytes = readMeshFileBytes(path);
+  const std::string bytes = readWholeFile(path, kMaxMeshFileBytes);
   if (extension == ".obj") {
     out.format = MeshFormat::kObj;
     summarizeObj(path, bytes, out);
   } else if (extension == ".stl") {
     out.format = MeshFormat::kStl;
     summarizeStl(path, bytes, out);
-  } else if (extension == ".glb") {
+  } else {
     out.format = MeshFormat::kGlb;
     summarizeGlb(path, bytes, out);
-  } else {
-    throw InputError(path, "is not named .obj, .stl or .glb");
   }
   return out;
 }

@@ -886,9 +886,8 @@ fs::path writeReport(const ScanResults& results, const fs::path& dir,
   html += interruptedNotice(in);
   html += pictures(in);
   if (!scene_mesh && results.mesh) scene_mesh = &*results.mesh;
-  // As many as the pictures paint: their close-ups (render --top), else render's default.
-  std::size_t painted_top = results.pictures ? results.pictures->closeups.size() : 0;
-  if (painted_top == 0) painted_top = kDefaultPaintedTop;
+  // As many as the pictures paint (their close-ups), as objscan view does.
+  const std::size_t painted_top = paintedTop(dir);
   html += view3dSection(*results.hypotheses, scene_mesh,
                         results.pictures ? results.pictures->camera : std::nullopt, dir,
                         painted_top);

@@ -816,8 +816,11 @@ namespace objscan::report {
 
 std::vector<fs::path> sceneMeshPlaces(const fs::path& dir, const SceneRecord& scene) {
   std::vector<fs::path> places;
-  // Only inside the folder: hypotheses.json cannot send the reader elsewhere through it.
-  if (const fs::path copy(scene.mesh_copy); !copy.empty() && copy.is_relative()) {
+  // Only inside the folder: a relative name without '..', so that mesh_copy cannot send the
+  // reader elsewhere (mesh and mesh_absolute name the scene's own file, wherever it is).
+  if (const fs::path copy(scene.mesh_copy);
+      !copy.empty() && copy.is_relative() &&
+      std::none_of(copy.begin(), copy.end(), [](const fs::path& part) { return part == ".."; })) {
     places.push_back(dir / copy);
   }
   places.push_back(dir / kMeshFile);

@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include <csignal>
+#include <cstdlib>
 #include <filesystem>
 #include <map>
 #include <set>
@@ -457,11 +458,31 @@ TEST_F(ScanCli, SettingsJsonSaysHowTheRunWasMadeAndConfigRepeatsIt) {
       foreign.string() + ": \"options.frobnicate\" is not an option of objscan scan");
 }
 
+/// Whether this test, and with it the objscan it runs, is built with AddressSanitizer.
+constexpr bool kAddressSanitizer =
+#if defined(__SANITIZE_ADDRESS__)
+    true;
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+    true;
+#else
+    false;
+#endif
+#else
+    false;
+#endif
+
 /// objscan with `args`, guarded so that a regression fails instead of hanging or exhausting the
 /// machine: killed after 10 s (exit -1; a FIFO opened for reading waits for a writer forever)
-/// and held to 3 GB of address space (/dev/zero read to its end takes all memory).
+/// and held to 3 GB (/dev/zero read to its end takes all memory): of address space, or under
+/// AddressSanitizer, which reserves terabytes of it for its shadow, of resident memory.
 ProcessResult guardedObjscan(const std::vector<std::string>& args) {
-  std::string command = "ulimit -v 3000000 && exec '" + std::string(OBJSCAN_EXE) + "'";
+  const char* asan_options = std::getenv("ASAN_OPTIONS");
+  std::string command =
+      kAddressSanitizer
+          ? "ASAN_OPTIONS='" + std::string(asan_options ? asan_options : "") +
+                ":hard_rss_limit_mb=3000' exec '" + std::string(OBJSCAN_EXE) + "'"
+          : "ulimit -v 3000000 && exec '" + std::string(OBJSCAN_EXE) + "'";
   for (const std::string& a : args) command += " '" + a + "'";  // test paths hold no quote
   testing::BackgroundProcess run({"/bin/sh", "-c", command});
   ProcessResult r;

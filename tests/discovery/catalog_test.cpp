@@ -428,8 +428,14 @@ TEST(Catalog, DevicesAndFifosAreRefusedBeforeSqliteOpensThem) {
   });
   if (opened.wait_for(std::chrono::seconds(10)) != std::future_status::ready) {
     ADD_FAILURE() << "opening a FIFO as the catalog did not return";
-    const int writer = ::open(fifo.c_str(), O_WRONLY | O_NONBLOCK);  // lets it go on
-    if (writer >= 0) ::close(writer);
+    // Lets it go on: an open for reading returns once a writer comes, and a read, should the
+    // catalog have opened the FIFO for reading and writing, returns the bytes written.
+    const int writer = ::open(fifo.c_str(), O_WRONLY | O_NONBLOCK);
+    if (writer >= 0) {
+      const std::string junk(4096, 'x');
+      (void)!::write(writer, junk.data(), junk.size());
+      ::close(writer);
+    }
   }
   const std::string message = opened.get();
   EXPECT_EQ(message.rfind(fifo.string() + ": is not a regular file", 0), 0u) << message;
