@@ -17,6 +17,7 @@
 #include <string_view>
 #include <tuple>
 
+#include <fcntl.h>  // AT_FDCWD
 #include <unistd.h>
 
 #include "objscan/core/atomic_file.h"
@@ -477,10 +478,29 @@ struct Catalog::Impl {
     }
     if (sqlite3_close(made.db) != SQLITE_OK) fail("closing the new file failed");
     made.db = nullptr;
-    const int linked = ::link(temporary.c_str(), file.c_str());
-    const int link_errno = errno;
-    ::unlink(temporary.c_str());
-    if (linked != 0 && link_errno != EEXIST) fail(std::strerror(link_errno));
+    int placed = ::link(temporary.c_str(), file.c_str());
+    int place_errno = errno;
+    if (placed != 0 && (place_errno == EPERM || place_errno == EOPNOTSUPP ||
+                        place_errno == ENOTSUP || place_errno == ENOSYS)) {
+      // A file system without hard links (vfat, exFAT, some network mounts): a rename that
+      // never replaces does the same, where the file system has one.
+      placed = ::renameat2(AT_FDCWD, temporary.c_str(), AT_FDCWD, file.c_str(), RENAME_NOREPLACE);
+      place_errno = errno;
+      if (placed != 0 && (place_errno == EINVAL || place_errno == ENOSYS)) {
+        // Neither: a plain rename when nothing is there yet. Only two runs making the same
+        // catalog in the same instant on such a file system can then meet: the later one's new
+        // catalog replaces the earlier's, and what the earlier adds to it is lost.
+        std::error_code exists_ec;
+        if (fs::exists(fs::symlink_status(file, exists_ec))) {
+          place_errno = EEXIST;
+        } else {
+          placed = ::rename(temporary.c_str(), file.c_str());
+          place_errno = errno;
+        }
+      }
+    }
+    ::unlink(temporary.c_str());  // after a rename, nothing is left of that name
+    if (placed != 0 && place_errno != EEXIST) fail(std::strerror(place_errno));
   }
 
   ~Impl() {
