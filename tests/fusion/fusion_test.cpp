@@ -10,6 +10,7 @@
 #include <optional>
 #include <set>
 #include <stdexcept>
+#include <string>
 #include <tuple>
 #include <vector>
 
@@ -519,16 +520,23 @@ TEST(Fusion, RejectsFramesAndSettingsThatDoNotFit) {
   }
 }
 
-TEST(Fusion, TracksASyntheticHandHeldSequenceWithNoise) {
-  // The step-B simulator (noise on) at 320x240: a desk with objects along a hand-held path.
+/// Fuses a synthetic hand-held run (`spec`, at 320x240) into `fusion`, starting from the first
+/// frame's true pose; returns the run's ground truth.
+Trajectory fuseSynthetic(const std::string& spec, std::optional<Fusion>& fusion) {
   const Intrinsics in = centredCamera(320, 240, 285.15);
-  capture::SyntheticSource source(capture::parseSynthSpec("synth:3,frames=45,objects=6"), in);
-  const Trajectory& truth = *source.info().ground_truth;
-  std::optional<Fusion> fusion;
+  capture::SyntheticSource source(capture::parseSynthSpec(spec), in);
+  const Trajectory truth = *source.info().ground_truth;
   for (auto r = source.next(); r.status == capture::FrameStatus::kOk; r = source.next()) {
     if (!fusion) fusion.emplace(FusionConfig{}, in, *nearestPose(truth, r.frame.stamp_s, 1e-3));
     fusion->process(r.frame);
   }
+  return truth;
+}
+
+TEST(Fusion, TracksASyntheticHandHeldSequenceWithNoise) {
+  // The step-B simulator (noise on) at 320x240: a desk with objects along a hand-held path.
+  std::optional<Fusion> fusion;
+  const Trajectory truth = fuseSynthetic("synth:3,frames=45,objects=6", fusion);
   ASSERT_TRUE(fusion.has_value());
   EXPECT_EQ(fusion->framesLost(), 0u);
   EXPECT_EQ(fusion->trajectory().size(), 45u);
@@ -545,14 +553,8 @@ TEST(Fusion, TracksASyntheticHandHeldSequenceWithNoise) {
 std::pair<Trajectory, TriangleMesh> fuseWithThreads(int threads) {
   const tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
                                   static_cast<std::size_t>(threads));
-  const Intrinsics in = centredCamera(320, 240, 285.15);
-  capture::SyntheticSource source(capture::parseSynthSpec("synth:3,frames=12,objects=6"), in);
-  const Trajectory& truth = *source.info().ground_truth;
   std::optional<Fusion> fusion;
-  for (auto r = source.next(); r.status == capture::FrameStatus::kOk; r = source.next()) {
-    if (!fusion) fusion.emplace(FusionConfig{}, in, *nearestPose(truth, r.frame.stamp_s, 1e-3));
-    fusion->process(r.frame);
-  }
+  fuseSynthetic("synth:3,frames=12,objects=6", fusion);
   return {fusion->trajectory(), extractMesh(fusion->volume())};
 }
 
