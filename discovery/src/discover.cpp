@@ -6,6 +6,7 @@
 #include <cmath>
 #include <ctime>
 #include <iomanip>
+#include <numeric>
 #include <sstream>
 #include <stdexcept>
 
@@ -129,6 +130,14 @@ void DiscoveryConfig::validate() const {
   }
   supports.validate();
   convexity.validate();
+  objects.validate();
+}
+
+void ObjectSetConfig::validate() const {
+  context.validate();
+  if (!(max_taken_share >= 0.0 && max_taken_share < 1.0)) {
+    throw std::invalid_argument("the object set's max_taken_share must be in [0, 1)");
+  }
 }
 
 std::string settingsKey(const DiscoveryConfig& c) {
@@ -160,7 +169,8 @@ std::string settingsKey(const DiscoveryConfig& c) {
 
 EffectiveScales effectiveScales(const MeshGraph& graph, const TriangleMesh& mesh,
                                 const DiscoveryConfig& config) {
-  EffectiveScales e{config.scales, config.min_size, config.supports.min_vertices, 0, 0.0};
+  EffectiveScales e{config.scales, config.min_size, config.supports.min_vertices, 0,
+                    config.objects.evidence_vertices, 0.0};
   std::size_t cut_off_size = config.supports.min_cut_off_size;
   if (!graph.edges.empty()) {
     std::vector<float> lengths(graph.edges.size());
@@ -179,6 +189,9 @@ EffectiveScales effectiveScales(const MeshGraph& graph, const TriangleMesh& mesh
           1, static_cast<std::size_t>(std::lround(static_cast<double>(count) * density)));
     };
     e.min_size = scaled(config.min_size);
+    e.evidence_vertices = config.objects.evidence_vertices == 0
+                              ? 0
+                              : scaled(config.objects.evidence_vertices);
     e.support_min_vertices = scaled(config.supports.min_vertices);
     cut_off_size = scaled(cut_off_size);
   }
@@ -208,15 +221,16 @@ SceneCandidates findCandidates(const TriangleMesh& mesh, const DiscoveryConfig& 
 
   // The cuts change edge weights only, which nothing but segmentation reads (the measures read
   // the convexity flags): the graph is cut in place, and the measures see the mesh uncut.
-  std::vector<std::uint8_t> on_support;
+  Supports supports;
+  supports.on_support.assign(mesh.positions.size(), 0);
   if (config.supports.enabled) {
-    Supports supports = findSupports(mesh, graph, config.supports, effective.support_min_vertices);
+    supports = findSupports(mesh, graph, config.supports, effective.support_min_vertices);
     out.support_planes = supports.planes.size();
     out.support_vertices = static_cast<std::size_t>(
         std::count(supports.on_support.begin(), supports.on_support.end(), 1));
     cutAtSupports(graph, supports.on_support);
-    on_support = std::move(supports.on_support);
   }
+  const std::vector<std::uint8_t>& on_support = supports.on_support;
   watch.stop(&t.support_ms, &t.support_cpu_ms);
 
   std::vector<Segmentation> segmentations =
@@ -242,8 +256,24 @@ SceneCandidates findCandidates(const TriangleMesh& mesh, const DiscoveryConfig& 
   watch.stop(&t.filter_ms, &t.filter_cpu_ms);
 
   out.measures = measureCandidates(mesh, graph, out.segments, config, &t.per_measure_cpu_ms);
+  out.context = segmentContexts(mesh, graph, supports, out.segments, config.objects.context);
   watch.stop(&t.measure_ms, &t.measure_cpu_ms);
   return out;
+}
+
+void addContext(const TriangleMesh& mesh, SceneCandidates& candidates,
+                const DiscoveryConfig& config) {
+  config.validate();
+  const MeshGraph graph = buildMeshGraph(mesh);
+  candidates.effective = effectiveScales(graph, mesh, config);
+  Supports supports;
+  supports.on_support.assign(mesh.positions.size(), 0);
+  if (config.supports.enabled) {
+    supports =
+        findSupports(mesh, graph, config.supports, candidates.effective.support_min_vertices);
+  }
+  candidates.context =
+      segmentContexts(mesh, graph, supports, candidates.segments, config.objects.context);
 }
 
 void addRecurrence(SceneCandidates& candidates, const RecurrenceIndex& index, std::int64_t scene_id,
@@ -267,7 +297,12 @@ std::vector<Hypothesis> suppress(const SceneCandidates& candidates,
   std::vector<Hypothesis> out;
   out.reserve(kept.size());
   for (std::size_t i : kept) {
-    out.push_back({candidates.segments[i], candidates.measures[i], scores[i]});
+    Hypothesis h;
+    h.segment = candidates.segments[i];
+    h.measures = candidates.measures[i];
+    h.score = scores[i];
+    if (candidates.context.size() == candidates.segments.size()) h.context = candidates.context[i];
+    out.push_back(std::move(h));
   }
   return out;
 }
@@ -280,6 +315,67 @@ std::vector<Hypothesis> rankCandidates(const SceneCandidates& candidates,
   scores.reserve(candidates.measures.size());
   for (const ShapeMeasures& m : candidates.measures) scores.push_back(model.score(m));
   return suppress(candidates, scores, max_iou);
+}
+
+std::vector<Hypothesis> rankObjects(const TriangleMesh& mesh, const SceneCandidates& candidates,
+                                    const ObjectnessModel& model, const DiscoveryConfig& config) {
+  const std::size_t n = candidates.segments.size();
+  std::vector<double> scores;
+  scores.reserve(n);
+  for (const ShapeMeasures& m : candidates.measures) scores.push_back(model.score(m));
+  if (!config.objects.enabled) return suppress(candidates, scores, config.max_iou);
+  if (candidates.context.size() != n) {
+    throw std::invalid_argument("rankObjects needs the context of every candidate");
+  }
+  const double evidence = static_cast<double>(candidates.effective.evidence_vertices);
+  std::vector<double> object_scores(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double count = static_cast<double>(candidates.segments[i].vertices.size());
+    object_scores[i] = scores[i] * count / (count + evidence);
+  }
+  // Those on a support first, then those on another candidate, then those that float; each
+  // group by object score; ties keep the candidates' order.
+  std::vector<std::size_t> order(n);
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    const int ta = footingTier(candidates.context[a].footing);
+    const int tb = footingTier(candidates.context[b].footing);
+    if (ta != tb) return ta < tb;
+    return object_scores[a] > object_scores[b];
+  });
+  std::vector<std::uint8_t> taken(mesh.positions.size(), 0);
+  std::vector<Hypothesis> objects;
+  std::vector<std::uint8_t> chosen(n, 0);
+  for (std::size_t i : order) {
+    const Segment& s = candidates.segments[i];
+    std::size_t overlap = 0;
+    for (std::int32_t v : s.vertices) overlap += taken[static_cast<std::size_t>(v)];
+    if (static_cast<double>(overlap) >
+        config.objects.max_taken_share * static_cast<double>(s.vertices.size())) {
+      continue;
+    }
+    Segment kept = s;
+    if (overlap > 0) {
+      std::vector<std::int32_t> rest;
+      rest.reserve(s.vertices.size() - overlap);
+      for (std::int32_t v : s.vertices) {
+        if (!taken[static_cast<std::size_t>(v)]) rest.push_back(v);
+      }
+      kept = describeSegment(mesh, std::move(rest), s.scale);
+    }
+    for (std::int32_t v : kept.vertices) taken[static_cast<std::size_t>(v)] = 1;
+    chosen[i] = 1;
+    Hypothesis h{std::move(kept), candidates.measures[i], scores[i], candidates.context[i],
+                 object_scores[i], objects.size() + 1};
+    objects.push_back(std::move(h));
+  }
+  // The alternatives: what suppression keeps that is not an object already, by score.
+  for (std::size_t i : suppressOverlaps(candidates.segments, scores, config.max_iou)) {
+    if (chosen[i]) continue;
+    objects.push_back({candidates.segments[i], candidates.measures[i], scores[i],
+                       candidates.context[i], object_scores[i], 0});
+  }
+  return objects;
 }
 
 }  // namespace objscan::discovery

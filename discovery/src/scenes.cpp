@@ -141,6 +141,7 @@ void findOrRecall(DiscoveredScene& scene, const std::string& content_hash,
   if (catalog && !content_hash.empty()) known = catalog->findScene(content_hash, settings);
   if (known && known->vertex_count == scene.mesh.positions.size()) {
     takeFromCatalog(*catalog, *options.catalog, known->id, scene);
+    addContext(scene.mesh, scene.candidates, options.config);
     return;
   }
   if (scene.mesh.positions.size() >= kAnnouncedVertices) {
@@ -240,19 +241,26 @@ Normalisation addRecurrenceAndNormalise(const std::vector<RecurrenceScene>& scen
 
 /// Scores and suppression within each scene (timed as its suppress stage), then every scene's
 /// hypotheses best first.
-void rankAll(SceneDiscovery& run, const ObjectnessModel& scorer, double max_iou) {
+void rankAll(SceneDiscovery& run, const ObjectnessModel& scorer, const DiscoveryConfig& config) {
   for (std::size_t s = 0; s < run.scenes.size(); ++s) {
     DiscoveryTimings& t = run.scenes[s].candidates.timings;
     Stopwatch watch;
-    for (Hypothesis& h : rankCandidates(run.scenes[s].candidates, scorer, max_iou)) {
+    for (Hypothesis& h : rankObjects(run.scenes[s].mesh, run.scenes[s].candidates, scorer, config)) {
       run.ranked.push_back({s, std::move(h)});
       ++run.scenes[s].hypotheses;
     }
     watch.stop(&t.suppress_ms, &t.suppress_cpu_ms);
   }
+  // Every scene's objects before any alternative; objects by footing (footingTier), then by
+  // object score; the alternatives by score. Within a scene that is rankObjects' order.
+  const auto key = [](const Hypothesis& h) {
+    const bool object = h.object_rank > 0;
+    return std::tuple(object ? 0 : 1, object ? footingTier(h.context.footing) : 0,
+                      object ? -h.object_score : -h.score);
+  };
   std::stable_sort(run.ranked.begin(), run.ranked.end(),
-                   [](const RankedHypothesis& a, const RankedHypothesis& b) {
-                     return a.hypothesis.score > b.hypothesis.score;
+                   [&](const RankedHypothesis& a, const RankedHypothesis& b) {
+                     return key(a.hypothesis) < key(b.hypothesis);
                    });
 }
 
@@ -430,7 +438,7 @@ SceneDiscovery discoverScenes(std::vector<SceneInput> inputs,
   const ObjectnessModel scorer =
       options.model ? *options.model
                     : ObjectnessModel::average(run.normaliser, varyingMeasures(run.normaliser));
-  rankAll(run, scorer, options.config.max_iou);
+  rankAll(run, scorer, options.config);
   run.scorer = scorer.kind();
   run.normalised_over = options.model     ? "the model's training segments"
                         : options.catalog ? "catalog"

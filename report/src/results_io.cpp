@@ -250,6 +250,15 @@ Hypotheses hypothesesFrom(const discovery::SceneDiscovery& run, const std::strin
     r.vertex_count = h.segment.vertices.size();
     r.file =
         std::string(kObjectsFolder) + "/" + rankFileName(i + 1, extensionOf(object_format).c_str());
+    if (std::isfinite(h.object_score)) {
+      r.object_rank = h.object_rank;
+      r.object_score = h.object_score;
+    }
+    r.footing = discovery::toString(h.context.footing);
+    const auto known = [](double v) { return std::isfinite(v) ? std::optional(v) : std::nullopt; };
+    r.height_m = known(h.context.height_m);
+    r.share_of_region = h.context.share_of_region;
+    r.observation = known(h.context.observation);
     out.hypotheses.push_back(std::move(r));
   }
   return out;
@@ -329,6 +338,18 @@ void writeHypotheses(const fs::path& file, const Hypotheses& hyp) {
               {"file", h.file}};
     if (h.score) j["score"] = *h.score;
     if (h.scale) j["scale"] = *h.scale;
+    if (h.object_rank) {
+      j["object_set"] = *h.object_rank > 0;
+      if (*h.object_rank > 0) j["object_rank"] = *h.object_rank;
+    }
+    if (h.object_score) j["object_score"] = *h.object_score;
+    if (!h.footing.empty()) {
+      Json c = {{"footing", h.footing}};
+      c["height_m"] = h.height_m ? Json(*h.height_m) : Json(nullptr);
+      if (h.share_of_region) c["share_of_region"] = *h.share_of_region;
+      c["observation"] = h.observation ? Json(*h.observation) : Json(nullptr);
+      j["context"] = c;
+    }
     if (h.box) {
       j["box"] = boxJson(*h.box);
     }
@@ -404,6 +425,19 @@ Hypotheses readHypotheses(const fs::path& file) {
     }
     r.vertex_count = h.count("vertex_count");
     r.file = h.string("file").value_or("");
+    if (const std::optional<bool> in_set = h.boolean("object_set")) {
+      r.object_rank = *in_set ? h.count("object_rank").value_or(0) : 0;
+      if (*in_set && r.object_rank == 0u) {
+        h.fail(h.keyPath("object_rank"), "is missing or not a rank (1, 2, ...) of an object");
+      }
+    }
+    r.object_score = h.number("object_score");
+    if (const std::optional<Node> c = h.object("context")) {
+      r.footing = c->string("footing").value_or("");
+      r.height_m = c->number("height_m");
+      r.share_of_region = c->number("share_of_region");
+      r.observation = c->number("observation");
+    }
     out.hypotheses.push_back(std::move(r));
   }
   for (std::size_t i = 0; i < out.hypotheses.size(); ++i) {

@@ -3,10 +3,12 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
 #include "objscan/core/triangle_mesh.h"
+#include "objscan/discovery/context.h"
 #include "objscan/discovery/convexity.h"
 #include "objscan/discovery/mesh_graph.h"
 #include "objscan/discovery/recurrence.h"
@@ -19,6 +21,26 @@
 /// several scales, hard filters, the five shape measures (findCandidates); recurrence against
 /// other scenes (addRecurrence); scores and non-maximum suppression (rankCandidates).
 namespace objscan::discovery {
+
+/// The object set: objscan's answer to "which objects are on this desk", beside the paper's ranked
+/// list of overlapping hypotheses. Candidates are taken greedily, those that stand on something
+/// (a support, or an object that does: SegmentContext::footing) before those that float, each
+/// group by its object score, and one joins when at most max_taken_share of its vertices belong
+/// to one taken before (those few are then left out of it): every surface region belongs to at
+/// most one object. The other hypotheses (non-maximum suppression at max_iou, as the paper's)
+/// follow as alternatives. docs/discovery.md, "Object set", says why and what it was tuned on.
+struct ObjectSetConfig {
+  bool enabled = true;
+  ContextConfig context;
+  /// A candidate's object score is its score times n / (n + evidence_vertices), n its vertex
+  /// count: the measures of a blob of a few dozen vertices, a few noise lengths across, say
+  /// little, so its score is drawn towards the mean's 0. Vertices at the reference density
+  /// (scaled as min_size is).
+  std::size_t evidence_vertices = 100;
+  double max_taken_share = 0.1;
+  /// Throws std::invalid_argument naming the first bad field.
+  void validate() const;
+};
 
 struct DiscoveryConfig {
   /// Felzenszwalb-Huttenlocher granularities k at the reference density: ten doublings from 5.
@@ -44,6 +66,7 @@ struct DiscoveryConfig {
   float symmetry_beta = 0.2f;         ///< the paper's beta (section IV-B)
   float smoothness_radius_m = 0.01f;  ///< the paper's r
   int smoothness_bins = 8;            ///< the paper's b
+  ObjectSetConfig objects;
   int recurrence_neighbours = kRecurrenceNeighbours;   ///< the paper's k = 10
   double recurrence_window = kRecurrenceExtentWindow;  ///< the paper's 25 %
 
@@ -63,6 +86,7 @@ struct EffectiveScales {
   /// The smallest candidate: min_size, or with supports the smaller min_cut_off_size (segments
   /// under min_size exist only where segmentation could not merge them).
   std::size_t candidate_min_size = 0;
+  std::size_t evidence_vertices = 0;  ///< ObjectSetConfig::evidence_vertices, scaled
   double median_edge_m = 0.0;
 };
 EffectiveScales effectiveScales(const MeshGraph& graph, const TriangleMesh& mesh,
@@ -71,7 +95,14 @@ EffectiveScales effectiveScales(const MeshGraph& graph, const TriangleMesh& mesh
 struct Hypothesis {
   Segment segment;
   ShapeMeasures measures;
-  double score = 0.0;  ///< the objectness score it was ranked by: higher is more object-like
+  double score = 0.0;  ///< the objectness score (model or average): higher is more object-like
+  SegmentContext context;
+  /// The score weighed by the evidence (ObjectSetConfig::evidence_vertices); NaN when the object
+  /// set is off.
+  double object_score = std::numeric_limits<double>::quiet_NaN();
+  /// Its place in its scene's object set (1 = first), 0 for an alternative. An object's segment
+  /// may be its candidate less a few vertices that an object before it holds.
+  std::size_t object_rank = 0;
 };
 
 /// CPU time, milliseconds, of each of the five measures that measureSegment computes, in
@@ -121,6 +152,7 @@ std::vector<double> averageScores(const std::vector<ShapeMeasures>& all);
 struct SceneCandidates {
   std::vector<Segment> segments;
   std::vector<ShapeMeasures> measures;
+  std::vector<SegmentContext> context;  ///< one per segment
   DiscoveryTimings timings;
   EffectiveScales effective;         ///< the min_size and scales used, and the mesh's median edge
   std::size_t support_planes = 0;    ///< planes with support regions (none when disabled)
@@ -132,6 +164,10 @@ struct SceneCandidates {
 /// std::invalid_argument for a bad config or a mesh that fails validate() or has no normals.
 SceneCandidates findCandidates(const TriangleMesh& mesh, const DiscoveryConfig& config);
 
+/// Fills `candidates.context` (and `effective`): for candidates the catalog held, which it keeps
+/// without their context. Builds the graph and finds the supports again.
+void addContext(const TriangleMesh& mesh, SceneCandidates& candidates, const DiscoveryConfig& config);
+
 /// Fills each candidate's recurrence against the index's segments of scenes other than
 /// `scene_id` (NaN where none is within the extent window).
 void addRecurrence(SceneCandidates& candidates, const RecurrenceIndex& index, std::int64_t scene_id,
@@ -141,5 +177,11 @@ void addRecurrence(SceneCandidates& candidates, const RecurrenceIndex& index, st
 /// better score kept) and returns the hypotheses best first.
 std::vector<Hypothesis> rankCandidates(const SceneCandidates& candidates,
                                        const ObjectnessModel& model, double max_iou);
+
+/// A scene's hypotheses as a user gets them: its object set (ObjectSetConfig), then the
+/// alternatives rankCandidates keeps that are not in it, by score. With the object set off,
+/// rankCandidates' list. `candidates.context` must hold one entry per segment.
+std::vector<Hypothesis> rankObjects(const TriangleMesh& mesh, const SceneCandidates& candidates,
+                                    const ObjectnessModel& model, const DiscoveryConfig& config);
 
 }  // namespace objscan::discovery

@@ -42,6 +42,15 @@ struct HypothesisRecord {
   std::vector<std::int32_t> vertices;       ///< indices into the scene mesh, increasing
   std::optional<std::size_t> vertex_count;  ///< as written; vertices.size() when those were read
   std::string file;  ///< its sub-mesh, relative to the folder: objects/rank_NNN.ply
+  /// Its place in its scene's object set (1 = first; the hypotheses a user sees, which never
+  /// overlap); 0 for an alternative; nothing in a file from before the object set.
+  std::optional<std::size_t> object_rank;
+  std::optional<double> object_score;  ///< the score weighed by its evidence
+  /// Its context (discovery::SegmentContext): how it stands ("support", "object" or "none";
+  /// empty when unknown), the height of its lowest point over the support plane under it, its
+  /// share of its region off the supports, how well fusion saw it.
+  std::string footing;
+  std::optional<double> height_m, share_of_region, observation;
 };
 
 /// Where discovery spent its time on one scene, milliseconds.

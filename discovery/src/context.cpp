@@ -1,0 +1,310 @@
+#include "objscan/discovery/context.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <stdexcept>
+#include <string>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include "disjoint_sets.h"
+#include "point_index.h"
+
+namespace objscan::discovery {
+
+namespace {
+
+/// A support plane turned so that its normal points to the free side, where the things standing
+/// on it are: the side its own vertices' normals face (fused and single-view normals point out of
+/// the surface, towards where the camera was).
+struct UpPlane {
+  Eigen::Vector3f up;
+  float offset;
+  float height(const Eigen::Vector3f& p) const { return up.dot(p) + offset; }
+};
+
+std::vector<UpPlane> orientedPlanes(const TriangleMesh& mesh, const Supports& supports) {
+  std::vector<UpPlane> planes;
+  for (const SupportPlane& p : supports.planes) {
+    double facing = 0.0;
+    for (std::size_t v = 0; v < mesh.positions.size(); ++v) {
+      if (!supports.on_support[v]) continue;
+      if (std::abs(p.normal.dot(mesh.positions[v]) + p.offset) > 0.02f) continue;
+      facing += p.normal.dot(mesh.normals[v]);
+    }
+    planes.push_back(facing >= 0.0 ? UpPlane{p.normal, p.offset} : UpPlane{-p.normal, -p.offset});
+  }
+  return planes;
+}
+
+bool contains(const std::vector<std::int32_t>& sorted, std::int32_t v) {
+  return std::binary_search(sorted.begin(), sorted.end(), v);
+}
+
+/// Whether two increasing vertex lists share a vertex.
+bool intersect(const std::vector<std::int32_t>& a, const std::vector<std::int32_t>& b) {
+  if (a.empty() || b.empty() || a.back() < b.front() || b.back() < a.front()) return false;
+  std::size_t i = 0, j = 0;
+  while (i < a.size() && j < b.size()) {
+    if (a[i] == b[j]) return true;
+    if (a[i] < b[j]) {
+      ++i;
+    } else {
+      ++j;
+    }
+  }
+  return false;
+}
+
+/// How far from a candidate's foot the support's own vertices may begin: the rounded fold where
+/// an object meets its support goes with the object (SupportConfig::max_angle_deg), about a
+/// voxel or two wide.
+constexpr float kSupportSearchM = 0.02f;
+
+/// What the first pass finds of one candidate.
+struct Lowest {
+  int plane = -1;        ///< the plane it is measured against (under it), -1 without one
+  float height = 0.0f;   ///< its lowest vertex's height above that plane
+  std::int32_t vertex = -1;
+  float centroid_height = 0.0f;
+};
+
+}  // namespace
+
+const char* toString(Footing footing) {
+  switch (footing) {
+    case Footing::kSupport:
+      return "support";
+    case Footing::kOnObject:
+      return "object";
+    case Footing::kNone:
+      break;
+  }
+  return "none";
+}
+
+int footingTier(Footing footing) {
+  switch (footing) {
+    case Footing::kSupport:
+      return 0;
+    case Footing::kOnObject:
+      return 1;
+    case Footing::kNone:
+      break;
+  }
+  return 2;
+}
+
+void ContextConfig::validate() const {
+  if (!(gap_m >= 0.0f) || !std::isfinite(gap_m) || !(gap_edges >= 0.0f) ||
+      !std::isfinite(gap_edges)) {
+    throw std::invalid_argument("the context's gap must be a finite number >= 0");
+  }
+  if (!(below_m >= 0.0f) || !std::isfinite(below_m)) {
+    throw std::invalid_argument("the context's depth below a support must be a finite number >= 0");
+  }
+  if (!(min_stack_share >= 0.0 && min_stack_share <= 1.0)) {
+    throw std::invalid_argument("the context's min_stack_share must be in [0, 1]");
+  }
+}
+
+std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const MeshGraph& graph,
+                                            const Supports& supports,
+                                            const std::vector<Segment>& segments,
+                                            const ContextConfig& config) {
+  config.validate();
+  const std::size_t n = mesh.positions.size();
+  if (supports.on_support.size() != n || graph.vertex_count != n) {
+    throw std::invalid_argument("segmentContexts needs one support flag per mesh vertex");
+  }
+  for (const Segment& s : segments) {
+    if (s.vertices.empty() || s.vertices.front() < 0 ||
+        static_cast<std::size_t>(s.vertices.back()) >= n) {
+      throw std::invalid_argument("a segment indexes outside the mesh");
+    }
+  }
+  const std::vector<UpPlane> planes = orientedPlanes(mesh, supports);
+
+  // The mesh off the supports in connected regions, and how many vertices each holds.
+  DisjointSets regions(n);
+  for (const MeshEdge& e : graph.edges) {
+    if (supports.on_support[static_cast<std::size_t>(e.a)] ||
+        supports.on_support[static_cast<std::size_t>(e.b)]) {
+      continue;
+    }
+    const std::int32_t a = regions.find(e.a), b = regions.find(e.b);
+    if (a != b) regions.attach(a, b);
+  }
+  std::vector<std::int32_t> region(n);
+  std::vector<std::size_t> region_size(n, 0);
+  for (std::size_t v = 0; v < n; ++v) {
+    region[v] = regions.find(static_cast<std::int32_t>(v));
+    if (!supports.on_support[v]) ++region_size[static_cast<std::size_t>(region[v])];
+  }
+  // Mean edge length around each vertex: a candidate's noise scale is the mean over its own.
+  std::vector<float> edge_sum(n, 0.0f);
+  std::vector<std::uint16_t> edge_count(n, 0);
+  for (const MeshEdge& e : graph.edges) {
+    const float length = (mesh.positions[static_cast<std::size_t>(e.a)] -
+                          mesh.positions[static_cast<std::size_t>(e.b)])
+                             .norm();
+    for (std::int32_t v : {e.a, e.b}) {
+      edge_sum[static_cast<std::size_t>(v)] += length;
+      if (edge_count[static_cast<std::size_t>(v)] < 0xffff) ++edge_count[static_cast<std::size_t>(v)];
+    }
+  }
+  std::vector<Eigen::Vector3f> support_points;
+  for (std::size_t v = 0; v < n; ++v) {
+    if (supports.on_support[v]) support_points.push_back(mesh.positions[v]);
+  }
+  const PointIndex support_index(support_points);
+
+  std::vector<SegmentContext> out(segments.size());
+  std::vector<Lowest> lowest(segments.size());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, segments.size()),
+                    [&](const tbb::blocked_range<std::size_t>& range) {
+    std::vector<std::pair<std::uint32_t, float>> found;
+    for (std::size_t i = range.begin(); i < range.end(); ++i) {
+      const Segment& s = segments[i];
+      SegmentContext& c = out[i];
+      double edges = 0.0, count = 0.0;
+      std::size_t in_region = 0;
+      std::int32_t own_region = -1;
+      for (std::int32_t v : s.vertices) {
+        edges += edge_sum[static_cast<std::size_t>(v)];
+        count += edge_count[static_cast<std::size_t>(v)];
+        if (own_region < 0 && !supports.on_support[static_cast<std::size_t>(v)]) {
+          own_region = region[static_cast<std::size_t>(v)];
+        }
+      }
+      c.mean_edge_m = count > 0.0 ? edges / count : 0.0;
+      for (std::int32_t v : s.vertices) {
+        in_region += region[static_cast<std::size_t>(v)] == own_region &&
+                     !supports.on_support[static_cast<std::size_t>(v)];
+      }
+      if (own_region >= 0) {
+        c.share_of_region = static_cast<double>(in_region) /
+                            static_cast<double>(region_size[static_cast<std::size_t>(own_region)]);
+      }
+      const float gap =
+          std::max(config.gap_m, config.gap_edges * static_cast<float>(c.mean_edge_m));
+      // Against each plane: the lowest vertex; the candidate stands on the first plane whose
+      // support is right under that vertex, else it is measured against the nearest plane it
+      // lies above.
+      Lowest& low = lowest[i];
+      for (std::size_t k = 0; k < planes.size(); ++k) {
+        float min_height = std::numeric_limits<float>::infinity(), sum = 0.0f;
+        std::int32_t at = -1;
+        for (std::int32_t v : s.vertices) {
+          const float h = planes[k].height(mesh.positions[static_cast<std::size_t>(v)]);
+          sum += h;
+          if (h < min_height) {
+            min_height = h;
+            at = v;
+          }
+        }
+        if (min_height < -config.below_m) continue;  // through or under this plane
+        const float centroid = sum / static_cast<float>(s.vertices.size());
+        // Its foot: vertices within the gap of the plane (at most 64, spread evenly); it stands
+        // when one of them has the support's surface near (the support, not a hole's floor).
+        bool on = false;
+        if (min_height <= gap && !support_points.empty()) {
+          std::vector<std::int32_t> foot;
+          for (std::int32_t v : s.vertices) {
+            if (planes[k].height(mesh.positions[static_cast<std::size_t>(v)]) <= gap) {
+              foot.push_back(v);
+            }
+          }
+          const std::size_t stride = (foot.size() + 63) / 64;
+          for (std::size_t f = 0; !on && f < foot.size(); f += stride) {
+            support_index.within(mesh.positions[static_cast<std::size_t>(foot[f])],
+                                 gap + kSupportSearchM, &found);
+            on = !found.empty();
+          }
+        }
+        if (on) {
+          c.footing = Footing::kSupport;
+          low = {static_cast<int>(k), min_height, at, centroid};
+          break;
+        }
+        if (low.plane < 0 || min_height < low.height) {
+          low = {static_cast<int>(k), min_height, at, centroid};
+        }
+      }
+      if (low.plane >= 0) c.height_m = low.height;
+    }
+  });
+
+  // Stacks: a candidate whose lowest part touches one that stands on a support, lower than it
+  // and sharing no vertex with it, stands on that one. Each vertex knows the smallest such
+  // candidate holding it.
+  std::vector<std::int32_t> holder(n, -1);
+  std::vector<std::size_t> grounded;
+  for (std::size_t i = 0; i < segments.size(); ++i) {
+    if (out[i].footing == Footing::kSupport) grounded.push_back(i);
+  }
+  std::stable_sort(grounded.begin(), grounded.end(), [&](std::size_t a, std::size_t b) {
+    return segments[a].vertices.size() > segments[b].vertices.size();
+  });
+  std::vector<Eigen::Vector3f> held_points;
+  std::vector<std::int32_t> held_vertex;
+  for (std::size_t i : grounded) {
+    for (std::int32_t v : segments[i].vertices) holder[static_cast<std::size_t>(v)] = static_cast<std::int32_t>(i);
+  }
+  for (std::size_t v = 0; v < n; ++v) {
+    if (holder[v] >= 0) {
+      held_points.push_back(mesh.positions[v]);
+      held_vertex.push_back(static_cast<std::int32_t>(v));
+    }
+  }
+  if (held_points.empty()) return out;
+  const PointIndex held_index(held_points);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, segments.size()),
+                    [&](const tbb::blocked_range<std::size_t>& range) {
+    std::vector<std::pair<std::uint32_t, float>> found;
+    for (std::size_t i = range.begin(); i < range.end(); ++i) {
+      SegmentContext& c = out[i];
+      const Lowest& low = lowest[i];
+      if (c.footing != Footing::kNone || low.plane < 0 ||
+          c.share_of_region < config.min_stack_share) {
+        continue;
+      }
+      const Segment& s = segments[i];
+      const UpPlane& plane = planes[static_cast<std::size_t>(low.plane)];
+      const float gap =
+          std::max(config.gap_m, config.gap_edges * static_cast<float>(c.mean_edge_m));
+      // Its lowest vertices: within the gap of the lowest, at most 64 of them spread evenly.
+      std::vector<std::int32_t> bottom;
+      for (std::int32_t v : s.vertices) {
+        if (plane.height(mesh.positions[static_cast<std::size_t>(v)]) <= low.height + gap) {
+          bottom.push_back(v);
+        }
+      }
+      const std::size_t stride = (bottom.size() + 63) / 64;
+      std::int32_t tried = -1;
+      for (std::size_t b = 0; b < bottom.size() && c.footing == Footing::kNone; b += stride) {
+        held_index.within(mesh.positions[static_cast<std::size_t>(bottom[b])], gap, &found);
+        for (const auto& [point, distance_sq] : found) {
+          const std::int32_t v = held_vertex[point];
+          const std::int32_t t = holder[static_cast<std::size_t>(v)];
+          if (t == tried || contains(s.vertices, v)) continue;
+          tried = t;
+          const Lowest& under = lowest[static_cast<std::size_t>(t)];
+          const float t_centroid = under.plane == low.plane
+                                       ? under.centroid_height
+                                       : std::numeric_limits<float>::infinity();
+          if (t_centroid < low.centroid_height &&
+              !intersect(segments[static_cast<std::size_t>(t)].vertices, s.vertices)) {
+            c.footing = Footing::kOnObject;
+            break;
+          }
+        }
+      }
+    }
+  });
+  return out;
+}
+
+}  // namespace objscan::discovery
