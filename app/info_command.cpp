@@ -82,8 +82,25 @@ void describeMesh(const fs::path& path) {
     ids.erase(0);
     const auto labelled = static_cast<std::size_t>(std::count_if(
         mesh.labels.begin(), mesh.labels.end(), [](std::int32_t l) { return l != 0; }));
-    row("objects",
-        fmt("%zu object ids on %zu vertices (object_id; 0 = not an object)", ids.size(), labelled));
+    // The reader takes the ids from `object_id` or, in a hand-labelled mesh, `label`.
+    std::string id_property = "object_id";
+    for (const PlyHeader::Element& e : report.header.elements) {
+      if (e.name != "vertex") continue;
+      for (const PlyHeader::Property& p : e.properties) {
+        if (p.name == "label") id_property = "label";
+      }
+    }
+    row("objects", fmt("%zu object ids on %zu vertices (%s; 0 = not an object)", ids.size(),
+                       labelled, id_property.c_str()));
+  }
+  if (mesh.hasWeights()) {
+    const auto [lo, hi] = std::minmax_element(mesh.weights.begin(), mesh.weights.end());
+    row("weights", fmt("%.4g .. %.4g (quality: the fusion weight, observations)", *lo, *hi));
+  }
+  if (mesh.hasIgnore()) {
+    const auto skipped = static_cast<std::size_t>(
+        std::count_if(mesh.ignore.begin(), mesh.ignore.end(), [](std::uint8_t f) { return f; }));
+    row("not scored", fmt("%zu vertices (ignore = 1)", skipped));
   }
   if (report.faces == 0) {
     row("faces", "0 (a point cloud)");

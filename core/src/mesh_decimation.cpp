@@ -99,22 +99,29 @@ DecimatedMesh decimateByClustering(const TriangleMesh& mesh, std::size_t max_tri
   std::vector<Eigen::Vector3d> sum_position(n, Eigen::Vector3d::Zero());
   std::vector<Eigen::Vector3d> sum_normal(mesh.hasNormals() ? n : 0, Eigen::Vector3d::Zero());
   std::vector<Eigen::Vector3d> sum_color(mesh.hasColors() ? n : 0, Eigen::Vector3d::Zero());
+  std::vector<double> sum_weight(mesh.hasWeights() ? n : 0, 0.0);
   std::vector<std::uint32_t> members(n, 0);
   out.mesh.labels.assign(mesh.hasLabels() ? n : 0, 0);
+  out.mesh.ignore.assign(mesh.hasIgnore() ? n : 0, 0);
   out.vertex_map.resize(mesh.positions.size());
   for (std::size_t v = 0; v < mesh.positions.size(); ++v) {
     const std::int32_t u = used[static_cast<std::size_t>(c.cluster_of[v])];
     out.vertex_map[v] = u;
     if (u < 0) continue;
     const auto i = static_cast<std::size_t>(u);
-    if (members[i]++ == 0 && mesh.hasLabels()) out.mesh.labels[i] = mesh.labels[v];
+    if (members[i]++ == 0) {
+      if (mesh.hasLabels()) out.mesh.labels[i] = mesh.labels[v];
+      if (mesh.hasIgnore()) out.mesh.ignore[i] = mesh.ignore[v];
+    }
     sum_position[i] += mesh.positions[v].cast<double>();
     if (mesh.hasNormals()) sum_normal[i] += mesh.normals[v].cast<double>();
     if (mesh.hasColors()) sum_color[i] += mesh.colors[v].cast<double>();
+    if (mesh.hasWeights()) sum_weight[i] += mesh.weights[v];
   }
   out.mesh.positions.resize(n);
   if (mesh.hasNormals()) out.mesh.normals.resize(n);
   if (mesh.hasColors()) out.mesh.colors.resize(n);
+  if (mesh.hasWeights()) out.mesh.weights.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     const double count = members[i];
     out.mesh.positions[i] = (sum_position[i] / count).cast<float>();
@@ -126,6 +133,7 @@ DecimatedMesh decimateByClustering(const TriangleMesh& mesh, std::size_t max_tri
     if (mesh.hasColors()) {
       out.mesh.colors[i] = (sum_color[i] / count).array().round().cast<std::uint8_t>().matrix();
     }
+    if (mesh.hasWeights()) out.mesh.weights[i] = static_cast<float>(sum_weight[i] / count);
   }
   out.mesh.triangles.reserve(c.triangles.size());
   for (const Eigen::Vector3i& t : c.triangles) {

@@ -117,6 +117,8 @@ enum class Slot : std::uint8_t {
   kGreen,
   kBlue,
   kLabel,
+  kQuality,
+  kIgnoreFlag,
   kIndices
 };
 
@@ -276,12 +278,24 @@ void assignSlots(ParsedHeader& header, PlyReadReport& report) {
       {"diffuse_green", Slot::kGreen},
       {"diffuse_blue", Slot::kBlue},
       {"object_id", Slot::kLabel},
+      {"label", Slot::kLabel},
+      {"quality", Slot::kQuality},
+      {"ignore", Slot::kIgnoreFlag},
   };
   bool have_vertex = false;
   for (Elem& e : header.elements) {
     if (e.name == "vertex") {
       if (have_vertex) throw ParseError{"the header declares two 'vertex' elements"};
       have_vertex = true;
+      const auto has = [&](std::string_view name) {
+        return std::any_of(e.props.begin(), e.props.end(),
+                           [&](const Prop& p) { return !p.list && p.name == name; });
+      };
+      if (has("label") && has("object_id")) {
+        throw ParseError{
+            "the vertex element has both 'label' and 'object_id', and both would be the object "
+            "ids: remove or rename one of them"};
+      }
       bool seen[16] = {};
       for (Prop& p : e.props) {
         for (const Named& n : kVertexSlots) {
@@ -296,8 +310,8 @@ void assignSlots(ParsedHeader& header, PlyReadReport& report) {
         throw ParseError{"the vertex element lacks one of the properties x, y, z"};
       }
       for (const Prop& p : e.props) {
-        if (p.slot == Slot::kLabel && !isInteger(p.type)) {
-          throw ParseError{"vertex property 'object_id' must have an integer type"};
+        if ((p.slot == Slot::kLabel || p.slot == Slot::kIgnoreFlag) && !isInteger(p.type)) {
+          throw ParseError{"vertex property '" + p.name + "' must have an integer type"};
         }
       }
       // Normals and colours are taken only when all three components are there.
@@ -553,17 +567,21 @@ void readBody(Source& in, const ParsedHeader& header, TriangleMesh& mesh, PlyRea
   for (const Elem& e : header.elements) {
     const bool is_vertex = e.name == "vertex";
     const bool is_face = e.name == "face";
-    bool normals = false, colors = false, labels = false;
+    bool normals = false, colors = false, labels = false, weights = false, ignore = false;
     for (const Prop& p : e.props) {
       normals |= p.slot == Slot::kNx;
       colors |= p.slot == Slot::kRed;
       labels |= p.slot == Slot::kLabel;
+      weights |= p.slot == Slot::kQuality;
+      ignore |= p.slot == Slot::kIgnoreFlag;
     }
     if (is_vertex) {
       mesh.positions.resize(e.count);
       if (normals) mesh.normals.resize(e.count);
       if (colors) mesh.colors.resize(e.count);
       if (labels) mesh.labels.resize(e.count);
+      if (weights) mesh.weights.resize(e.count);
+      if (ignore) mesh.ignore.resize(e.count);
     }
     if (is_face) mesh.triangles.reserve(e.count);
 
@@ -657,9 +675,15 @@ void readBody(Source& in, const ParsedHeader& header, TriangleMesh& mesh, PlyRea
               break;
             case Slot::kLabel:
               if (v < INT32_MIN || v > INT32_MAX) {
-                throw ParseError{"object_id " + std::to_string(v) + " does not fit a 32-bit int"};
+                throw ParseError{p.name + " " + std::to_string(v) + " does not fit a 32-bit int"};
               }
               mesh.labels[row] = static_cast<std::int32_t>(v);
+              break;
+            case Slot::kQuality:
+              mesh.weights[row] = static_cast<float>(v);  // checked by dropUnusableWeights
+              break;
+            case Slot::kIgnoreFlag:
+              mesh.ignore[row] = v != 0.0 ? 1 : 0;
               break;
             case Slot::kIgnore:
             case Slot::kIndices:
@@ -675,6 +699,22 @@ void readBody(Source& in, const ParsedHeader& header, TriangleMesh& mesh, PlyRea
     }
   }
   report.trailing_bytes = in.trailing();
+}
+
+/// `quality` is a fusion weight in the files objscan writes, but any scalar in others (MeshLab
+/// keeps curvature, distances or ambient occlusion there, negative too): values that cannot be a
+/// weight (NaN, infinite, negative) make the property ignored, with a warning, not the file
+/// refused.
+void dropUnusableWeights(const fs::path& path, TriangleMesh& mesh, PlyReadReport& report) {
+  const auto bad = std::find_if(mesh.weights.begin(), mesh.weights.end(),
+                                [](float w) { return !(std::isfinite(w) && w >= 0.0f); });
+  if (bad == mesh.weights.end()) return;
+  log::warning(path.string() +
+               ": vertex property 'quality' ignored: objscan reads it as the fusion weight, a "
+               "finite number >= 0, and vertex " +
+               std::to_string(bad - mesh.weights.begin()) + " has " + std::to_string(*bad));
+  mesh.weights.clear();
+  report.ignored.push_back("vertex.quality");
 }
 
 PlyHeader publicHeader(const ParsedHeader& parsed) {
@@ -742,6 +782,7 @@ TriangleMesh readPly(const fs::path& path, PlyReadReport* report_out) {
   } catch (const ParseError& e) {
     throw InputError(path, e.what);
   }
+  dropUnusableWeights(path, mesh, report);
 
   try {
     mesh.validate();
@@ -771,6 +812,8 @@ std::string encodePly(const TriangleMesh& mesh, PlyFormat format) {
   const bool normals = mesh.hasNormals();
   const bool colors = mesh.hasColors();
   const bool labels = mesh.hasLabels();
+  const bool weights = mesh.hasWeights();
+  const bool ignore = mesh.hasIgnore();
 
   std::string out;
   out += "ply\nformat ";
@@ -781,6 +824,8 @@ std::string encodePly(const TriangleMesh& mesh, PlyFormat format) {
   if (normals) out += "property float nx\nproperty float ny\nproperty float nz\n";
   if (colors) out += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
   if (labels) out += "property int object_id\n";
+  if (weights) out += "property float quality\n";
+  if (ignore) out += "property uchar ignore\n";
   out += "element face " + std::to_string(mesh.triangles.size()) + "\n";
   out += "property list uchar int vertex_indices\nend_header\n";
 
@@ -814,6 +859,14 @@ std::string encodePly(const TriangleMesh& mesh, PlyFormat format) {
         out += ' ';
         putText(out, mesh.labels[i]);
       }
+      if (weights) {
+        out += ' ';
+        putText(out, mesh.weights[i]);
+      }
+      if (ignore) {
+        out += ' ';
+        putText(out, static_cast<int>(mesh.ignore[i]));
+      }
       out += '\n';
     }
     for (const auto& t : mesh.triangles) {
@@ -827,7 +880,9 @@ std::string encodePly(const TriangleMesh& mesh, PlyFormat format) {
   } else {
     const bool swap =
         (format == PlyFormat::kBinaryLittleEndian) != (std::endian::native == std::endian::little);
-    out.reserve(out.size() + n * (12 + (normals ? 12 : 0) + (colors ? 3 : 0) + (labels ? 4 : 0)) +
+    out.reserve(out.size() +
+                n * (12 + (normals ? 12 : 0) + (colors ? 3 : 0) + (labels ? 4 : 0) +
+                     (weights ? 4 : 0) + (ignore ? 1 : 0)) +
                 mesh.triangles.size() * 13);
     for (std::size_t i = 0; i < n; ++i) {
       for (int k = 0; k < 3; ++k) putBinary(out, mesh.positions[i][k], swap);
@@ -835,6 +890,8 @@ std::string encodePly(const TriangleMesh& mesh, PlyFormat format) {
         for (int k = 0; k < 3; ++k) putBinary(out, mesh.normals[i][k], swap);
       if (colors) out.append(reinterpret_cast<const char*>(mesh.colors[i].data()), 3);
       if (labels) putBinary(out, mesh.labels[i], swap);
+      if (weights) putBinary(out, mesh.weights[i], swap);
+      if (ignore) out += static_cast<char>(mesh.ignore[i]);
     }
     for (const auto& t : mesh.triangles) {
       out += static_cast<char>(3);

@@ -1,5 +1,6 @@
 #include "objscan/core/triangle_mesh.h"
 
+#include <cmath>
 #include <stdexcept>
 #include <string>
 
@@ -39,6 +40,23 @@ void TriangleMesh::validate() const {
   }
   if (!labels.empty() && labels.size() != n) {
     throw std::invalid_argument("mesh has " + std::to_string(labels.size()) + " labels for " +
+                                std::to_string(n) + " vertices");
+  }
+  if (!weights.empty()) {
+    if (weights.size() != n) {
+      throw std::invalid_argument("mesh has " + std::to_string(weights.size()) + " weights for " +
+                                  std::to_string(n) + " vertices");
+    }
+    for (size_t i = 0; i < n; ++i) {
+      if (!(std::isfinite(weights[i]) && weights[i] >= 0.0f)) {
+        throw std::invalid_argument("vertex " + std::to_string(i) + " has the weight " +
+                                    std::to_string(weights[i]) +
+                                    "; a weight must be a finite number >= 0");
+      }
+    }
+  }
+  if (!ignore.empty() && ignore.size() != n) {
+    throw std::invalid_argument("mesh has " + std::to_string(ignore.size()) + " ignore flags for " +
                                 std::to_string(n) + " vertices");
   }
   const auto count = static_cast<long long>(n);
@@ -106,6 +124,8 @@ TriangleMesh TriangleMesh::subset(const std::vector<std::int32_t>& vertices) con
     if (hasNormals()) out.normals.push_back(normals[v]);
     if (hasColors()) out.colors.push_back(colors[v]);
     if (hasLabels()) out.labels.push_back(labels[v]);
+    if (hasWeights()) out.weights.push_back(weights[v]);
+    if (hasIgnore()) out.ignore.push_back(ignore[v]);
   }
   for (const Eigen::Vector3i& t : triangles) {
     const Eigen::Vector3i r(renumbered[t[0]], renumbered[t[1]], renumbered[t[2]]);

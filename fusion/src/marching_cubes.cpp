@@ -186,6 +186,7 @@ TriangleMesh extractMesh(const TsdfVolume& volume_in, const std::string& progres
     std::vector<std::int32_t> edge_vertex;  ///< per (voxel, axis): local vertex number or -1
     std::vector<Eigen::Vector3f> positions;
     std::vector<Rgb8> colors;
+    std::vector<float> weights;
   };
   std::vector<BlockVertices> per_block(block_count);
   tbb::parallel_for(
@@ -219,6 +220,10 @@ TriangleMesh extractMesh(const TsdfVolume& volume_in, const std::string& progres
                   const VoxelColor& c1 = n.color(x1, y1, z1);
                   out.colors.push_back(
                       Rgb8(lerp(c0.r, c1.r), lerp(c0.g, c1.g), lerp(c0.b, c1.b)));
+                  // Both voxels were observed: the weight is at least 1.
+                  const auto w0 = static_cast<float>(v0->weight);
+                  const auto w1 = static_cast<float>(v1->weight);
+                  out.weights.push_back(w0 + t * (w1 - w0));
                 }
               }
             }
@@ -279,9 +284,11 @@ TriangleMesh extractMesh(const TsdfVolume& volume_in, const std::string& progres
   TriangleMesh mesh;
   mesh.positions.reserve(static_cast<std::size_t>(first_vertex.back()));
   mesh.colors.reserve(mesh.positions.capacity());
+  mesh.weights.reserve(mesh.positions.capacity());
   for (const BlockVertices& b : per_block) {
     mesh.positions.insert(mesh.positions.end(), b.positions.begin(), b.positions.end());
     mesh.colors.insert(mesh.colors.end(), b.colors.begin(), b.colors.end());
+    mesh.weights.insert(mesh.weights.end(), b.weights.begin(), b.weights.end());
   }
   for (const auto& list : triangles) {
     for (const Eigen::Vector3i& t : list) {
@@ -302,10 +309,12 @@ TriangleMesh extractMesh(const TsdfVolume& volume_in, const std::string& progres
     remap[v] = kept;
     mesh.positions[static_cast<std::size_t>(kept)] = mesh.positions[v];
     mesh.colors[static_cast<std::size_t>(kept)] = mesh.colors[v];
+    mesh.weights[static_cast<std::size_t>(kept)] = mesh.weights[v];
     ++kept;
   }
   mesh.positions.resize(static_cast<std::size_t>(kept));
   mesh.colors.resize(static_cast<std::size_t>(kept));
+  mesh.weights.resize(static_cast<std::size_t>(kept));
   for (Eigen::Vector3i& t : mesh.triangles) {
     for (int k = 0; k < 3; ++k) t[k] = remap[static_cast<std::size_t>(t[k])];
   }

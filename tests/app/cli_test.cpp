@@ -274,13 +274,18 @@ TEST(Cli, InfoOnMeshPrintsCountsBoundsAndFormat) {
   TriangleMesh cube = testing::makeCube(0.5f);
   cube.normals.assign(8, Eigen::Vector3f::UnitZ());
   cube.labels = {0, 0, 3, 3, 0, 7, 7, 7};
+  cube.weights = {1.0f, 2.0f, 3.5f, 3.5f, 64.0f, 128.0f, 1.0f, 2.0f};
+  cube.ignore = {0, 1, 1, 0, 0, 0, 0, 1};
   writePly(dir / "cube.ply", cube);
   const ProcessResult r = objscan({"info", (dir / "cube.ply").string()});
   EXPECT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("mesh (PLY binary_little_endian"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("vertices      8 (normals: yes, colours: no)"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("faces         12 triangles"), std::string::npos) << r.out;
-  EXPECT_NE(r.out.find("objects       2 object ids on 5 vertices"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("objects       2 object ids on 5 vertices (object_id;"), std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("weights       1 .. 128 (quality"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("not scored    3 vertices"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("extent        0.5000 x 0.5000 x 0.5000 m"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("area          1.5000 m^2"), std::string::npos) << r.out;
 }

@@ -84,5 +84,29 @@ TEST(DecimateByClustering, FitsTheLimitStaysOnTheSurfaceAndMapsEveryVertex) {
   }
 }
 
+TEST(DecimateByClustering, WeightsAreAveragedAndIgnoreFlagsKept) {
+  TriangleMesh mesh = wave(80);
+  for (const Eigen::Vector3f& p : mesh.positions) {
+    mesh.weights.push_back(1.0f + 10.0f * (p.x() + 0.5f));  // 1 .. 11 across the square
+    mesh.ignore.push_back(p.x() < 0.0f ? 1 : 0);
+  }
+  const DecimatedMesh d = decimateByClustering(mesh, 2000);
+  ASSERT_GT(d.cell_m, 0.0f) << "clustered, not copied";
+  ASSERT_NO_THROW(d.mesh.validate());
+  ASSERT_EQ(d.mesh.weights.size(), d.mesh.positions.size());
+  ASSERT_EQ(d.mesh.ignore.size(), d.mesh.positions.size());
+  // A cluster's weight is the mean of its members', which all lie within a cell's edge in x; its
+  // flag is one member's, so it matches every member's away from x = 0.
+  for (std::size_t v = 0; v < mesh.positions.size(); ++v) {
+    const std::int32_t p = d.vertex_map[v];
+    if (p < 0) continue;
+    const auto i = static_cast<std::size_t>(p);
+    EXPECT_NEAR(d.mesh.weights[i], mesh.weights[v], 10.0f * d.cell_m + 1e-5f) << v;
+    if (std::abs(mesh.positions[v].x()) > d.cell_m) {
+      EXPECT_EQ(d.mesh.ignore[i], mesh.ignore[v]) << v;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace objscan

@@ -66,6 +66,38 @@ TEST_P(PlyRoundTrip, PointCloudWithoutFacesReadsAsMeshWithoutTriangles) {
   EXPECT_EQ(report.faces, 0u);
 }
 
+TEST_P(PlyRoundTrip, WeightsAndIgnoreFlagsAreBitExact) {
+  TempDir dir;
+  TriangleMesh mesh = testing::makeRandomMesh(13, 40, 60);
+  // Awkward floats first (zero, subnormal, a third, the largest finite), then fusion-like counts.
+  const float awkward[] = {0.0f, 1.4e-45f, 1.0f / 3.0f, std::numeric_limits<float>::max()};
+  for (std::size_t i = 0; i < mesh.positions.size(); ++i) {
+    mesh.weights.push_back(i < std::size(awkward) ? awkward[i]
+                                                  : 1.0f + 0.37f * static_cast<float>(i));
+    mesh.ignore.push_back(i % 3 == 0 ? 1 : 0);
+  }
+  writePly(dir / "m.ply", mesh, GetParam());
+  const TriangleMesh back = readPly(dir / "m.ply");
+  EXPECT_TRUE(testing::bitwiseEqual(mesh, back));
+  EXPECT_EQ(back.labels, mesh.labels);
+  // Either alone, and the header names them as MeshLab and CloudCompare expect.
+  mesh.ignore.clear();
+  writePly(dir / "w.ply", mesh, GetParam());
+  PlyReadReport report;
+  EXPECT_TRUE(testing::bitwiseEqual(mesh, readPly(dir / "w.ply", &report)));
+  ASSERT_EQ(report.header.elements.size(), 2u);
+  const auto& props = report.header.elements[0].properties;
+  ASSERT_FALSE(props.empty());
+  EXPECT_EQ(props.back().name, "quality");
+  EXPECT_EQ(props.back().type, "float");
+  mesh.weights.clear();
+  mesh.ignore.assign(mesh.positions.size(), 1);
+  writePly(dir / "i.ply", mesh, GetParam());
+  EXPECT_TRUE(testing::bitwiseEqual(mesh, readPly(dir / "i.ply", &report)));
+  EXPECT_EQ(report.header.elements[0].properties.back().name, "ignore");
+  EXPECT_EQ(report.header.elements[0].properties.back().type, "uchar");
+}
+
 INSTANTIATE_TEST_SUITE_P(AllFormats, PlyRoundTrip,
                          ::testing::Values(PlyFormat::kAscii, PlyFormat::kBinaryLittleEndian,
                                            PlyFormat::kBinaryBigEndian),
@@ -104,9 +136,9 @@ TEST(PlyIo, ReadsPropertiesInAnyOrderAndIgnoresExtras) {
   EXPECT_EQ(m.colors[2], Rgb8(12, 22, 32));
   ASSERT_EQ(m.triangles.size(), 1u);
   EXPECT_EQ(m.triangles[0], Eigen::Vector3i(2, 1, 0));
+  EXPECT_EQ(m.weights, (std::vector<float>{0.25f, 0.0f, 0.0f}));
   EXPECT_EQ(report.header.comments.size(), 2u);
-  const std::vector<std::string> ignored = {"vertex.quality", "vertex.extra", "vertex.alpha",
-                                            "edge", "face.flags"};
+  const std::vector<std::string> ignored = {"vertex.extra", "vertex.alpha", "edge", "face.flags"};
   EXPECT_EQ(report.ignored, ignored);
 }
 
@@ -235,9 +267,9 @@ TEST(PlyIo, MeshLabLayoutWithCameraQualityAndFaceColoursIsRead) {
   EXPECT_EQ(m.triangles, cube.triangles);
   EXPECT_EQ(m.colors[3], Rgb8(90, 7, 200));
   EXPECT_NEAR(m.normals[5].norm(), 1.0f, 1e-6f);
-  const std::vector<std::string> ignored = {"camera",     "vertex.alpha", "vertex.quality",
-                                            "face.flags", "face.red",     "face.green",
-                                            "face.blue",  "face.alpha",   "edge"};
+  EXPECT_EQ(m.weights, std::vector<float>(8, 0.5f)) << "MeshLab's quality is read as the weight";
+  const std::vector<std::string> ignored = {"camera",     "vertex.alpha", "face.flags", "face.red",
+                                            "face.green", "face.blue",    "face.alpha", "edge"};
   EXPECT_EQ(report.ignored, ignored);
 }
 
@@ -496,6 +528,72 @@ TEST(PlyIo, MalformedValuesAndHeaderLinesAreErrors) {
                  "property float red\nproperty float green\nproperty float blue\nend_header\n"
                  "0 0 0 0.5 nan 1\n");
   expectReadError(dir / "nancolour.ply", "a colour value is NaN");
+}
+
+TEST(PlyIo, LabelIsReadAsObjectIdsAndIgnoreAsFlags) {
+  // The layout of a hand-labelled mesh: `label` (int) for the object ids, `ignore` (uchar) for the
+  // vertices not to score, and a quality of another type.
+  TempDir dir;
+  for (const bool big : {false, true}) {
+    Bytes b{big, ""};
+    const std::int32_t labels[] = {0, 10, -3};
+    const std::uint8_t ignore[] = {0, 1, 7};
+    for (int i = 0; i < 3; ++i) {
+      b.put<float>(static_cast<float>(i)).put<float>(static_cast<float>(i % 2)).put<float>(0.0f);
+      b.put<std::int32_t>(labels[i]).put<std::uint8_t>(ignore[i]).put<double>(2.5 * i);
+    }
+    b.put<std::uint8_t>(3).put<std::int32_t>(0).put<std::int32_t>(1).put<std::int32_t>(2);
+    writeBytes(dir / "l.ply", std::string("ply\nformat ") +
+                                  (big ? "binary_big_endian" : "binary_little_endian") +
+                                  " 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                                  "property float z\nproperty int label\nproperty uchar ignore\n"
+                                  "property double quality\nelement face 1\n"
+                                  "property list uchar int vertex_indices\nend_header\n" +
+                                  b.data);
+    PlyReadReport report;
+    const TriangleMesh m = readPly(dir / "l.ply", &report);
+    EXPECT_EQ(m.labels, (std::vector<std::int32_t>{0, 10, -3})) << (big ? "big" : "little");
+    EXPECT_EQ(m.ignore, (std::vector<std::uint8_t>{0, 1, 1})) << "any non-zero value is 1";
+    EXPECT_EQ(m.weights, (std::vector<float>{0.0f, 2.5f, 5.0f}));
+    EXPECT_TRUE(report.ignored.empty());
+  }
+  // ASCII, a ushort label.
+  writeBytes(dir / "a.ply",
+             "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+             "property float z\nproperty ushort label\nend_header\n0 0 0 40\n1 0 0 0\n");
+  EXPECT_EQ(readPly(dir / "a.ply").labels, (std::vector<std::int32_t>{40, 0}));
+}
+
+TEST(PlyIo, LabelAndObjectIdTogetherOrFlagsOfAFloatTypeAreErrors) {
+  TempDir dir;
+  const std::string xyz = "property float x\nproperty float y\nproperty float z\n";
+  writeBytes(dir / "both.ply", "ply\nformat ascii 1.0\nelement vertex 1\n" + xyz +
+                                   "property int object_id\nproperty int label\nend_header\n"
+                                   "0 0 0 1 2\n");
+  expectReadError(dir / "both.ply", "both 'label' and 'object_id'");
+  writeBytes(dir / "floatlabel.ply", "ply\nformat ascii 1.0\nelement vertex 1\n" + xyz +
+                                         "property float label\nend_header\n0 0 0 1.5\n");
+  expectReadError(dir / "floatlabel.ply", "vertex property 'label' must have an integer type");
+  writeBytes(dir / "floatignore.ply", "ply\nformat ascii 1.0\nelement vertex 1\n" + xyz +
+                                          "property float ignore\nend_header\n0 0 0 1\n");
+  expectReadError(dir / "floatignore.ply", "vertex property 'ignore' must have an integer type");
+}
+
+TEST(PlyIo, AQualityThatCannotBeAWeightIsIgnored) {
+  // MeshLab keeps any scalar in `quality` (curvature, say): a file whose values cannot be fusion
+  // weights is read without them, not refused.
+  TempDir dir;
+  const std::string xyz = "property float x\nproperty float y\nproperty float z\n";
+  for (const char* bad : {"-0.5", "nan", "inf"}) {
+    writeBytes(dir / "q.ply", "ply\nformat ascii 1.0\nelement vertex 2\n" + xyz +
+                                  "property float quality\nend_header\n0 0 0 1\n0 1 0 " + bad +
+                                  "\n");
+    PlyReadReport report;
+    const TriangleMesh m = readPly(dir / "q.ply", &report);
+    EXPECT_EQ(m.positions.size(), 2u) << bad;
+    EXPECT_FALSE(m.hasWeights()) << bad;
+    EXPECT_EQ(report.ignored, std::vector<std::string>{"vertex.quality"}) << bad;
+  }
 }
 
 TEST(PlyIo, MissingEmptyAndDirectoryPathsAreErrors) {

@@ -54,6 +54,24 @@ TEST(TriangleMesh, ValidateRejectsAttributeCountMismatch) {
   m = testing::makeCube();
   m.labels.assign(3, 1);
   expectInvalid(m, "3 labels for 8 vertices");
+  m = testing::makeCube();
+  m.weights.assign(9, 1.0f);
+  expectInvalid(m, "9 weights for 8 vertices");
+  m = testing::makeCube();
+  m.ignore.assign(2, 1);
+  expectInvalid(m, "2 ignore flags for 8 vertices");
+}
+
+TEST(TriangleMesh, ValidateRejectsWeightsThatAreNotFiniteOrAreNegative) {
+  TriangleMesh m = testing::makeCube();
+  m.weights.assign(8, 0.0f);  // zero is a weight: never observed
+  EXPECT_NO_THROW(m.validate());
+  m.weights[5] = std::numeric_limits<float>::quiet_NaN();
+  expectInvalid(m, "vertex 5 has the weight nan");
+  m.weights[5] = std::numeric_limits<float>::infinity();
+  expectInvalid(m, "vertex 5 has the weight inf");
+  m.weights[5] = -1.0f;
+  expectInvalid(m, "vertex 5 has the weight -1");
 }
 
 TEST(TriangleMesh, CubeBoundsAndAreaAreExact) {
@@ -78,18 +96,28 @@ TEST(TriangleMesh, SubsetKeepsTheVerticesAttributesAndInnerTriangles) {
   TriangleMesh m = testing::makeHeightField(3, 1.0f, [](float, float) { return 0.0f; });
   m.colors.assign(9, Rgb8(1, 2, 3));
   m.labels = {0, 1, 2, 3, 4, 5, 6, 7, 8};
+  m.weights = {0.5f, 1.5f, 2.5f, 3.5f, 4.5f, 5.5f, 6.5f, 7.5f, 8.5f};
+  m.ignore = {1, 0, 0, 1, 0, 0, 1, 0, 0};
   // The left two columns: vertices 0, 1, 3, 4, 6, 7 (rows of 3): the two left cells, 4 triangles.
   const TriangleMesh s = m.subset({0, 1, 3, 4, 6, 7});
   ASSERT_EQ(s.positions.size(), 6u);
   EXPECT_EQ(s.positions[2], m.positions[3]);
   EXPECT_EQ(s.normals[5], m.normals[7]);
   EXPECT_EQ(s.labels, (std::vector<std::int32_t>{0, 1, 3, 4, 6, 7}));
+  EXPECT_EQ(s.weights, (std::vector<float>{0.5f, 1.5f, 3.5f, 4.5f, 6.5f, 7.5f}));
+  EXPECT_EQ(s.ignore, (std::vector<std::uint8_t>{1, 0, 1, 0, 1, 0}));
   EXPECT_EQ(s.colors.size(), 6u);
   EXPECT_EQ(s.triangles.size(), 4u);
   EXPECT_NO_THROW(s.validate());
   EXPECT_NEAR(s.surfaceArea(), m.surfaceArea() / 2, 1e-6);
   EXPECT_THROW(m.subset({3, 1}), std::invalid_argument);
   EXPECT_THROW(m.subset({9}), std::invalid_argument);
+  // A mesh without weights or flags gives a subset without them.
+  m.weights.clear();
+  m.ignore.clear();
+  const TriangleMesh bare = m.subset({0, 1, 3});
+  EXPECT_FALSE(bare.hasWeights());
+  EXPECT_FALSE(bare.hasIgnore());
 }
 
 }  // namespace

@@ -311,6 +311,51 @@ TEST(MarchingCubes, SphereSeenFromAllSidesIsClosedOutwardAndOnTheSurface) {
   EXPECT_LT(sum / static_cast<double>(mesh.positions.size()), 0.1 * config.voxel_size_m);
   EXPECT_LT(worst, 0.5 * config.voxel_size_m);
   EXPECT_EQ(inward, 0u);
+
+  // Every vertex carries the weight of the voxels around it: at least one observation, at most
+  // the 26 views.
+  ASSERT_EQ(mesh.weights.size(), mesh.positions.size());
+  const auto [lightest, heaviest] = std::minmax_element(mesh.weights.begin(), mesh.weights.end());
+  EXPECT_GE(*lightest, 1.0f);
+  EXPECT_LE(*heaviest, 26.0f);
+}
+
+TEST(MarchingCubes, VertexWeightsCountTheFramesThatSawTheSurface) {
+  // A fronto-parallel plane seen whole once, then its left half (x < 0) in six more frames, with
+  // the weight capped at 4: voxels of the left half hold weight 4, those of the right half 1, and
+  // the weight interpolated between two equal weights is that weight exactly.
+  const Intrinsics in = centredCamera(160, 120, 142.6);
+  const Scene scene{{}, {{Eigen::Vector3f(0, 0, 1), 1.0f}}};
+  VolumeConfig config;
+  config.max_weight = 4.0f;
+  TsdfVolume volume(config);
+  const cv::Mat whole = renderDepth(scene, in, Pose::Identity());
+  cv::Mat left = whole.clone();
+  left.colRange(in.width_px / 2, in.width_px).setTo(0.0f);
+  volume.integrate(whole, {}, in, Pose::Identity());
+  for (int k = 0; k < 6; ++k) volume.integrate(left, {}, in, Pose::Identity());
+
+  const TriangleMesh mesh = extractMesh(volume);
+  ASSERT_EQ(mesh.weights.size(), mesh.positions.size());
+  std::size_t left_vertices = 0, right_vertices = 0;
+  for (std::size_t i = 0; i < mesh.positions.size(); ++i) {
+    const float w = mesh.weights[i];
+    EXPECT_TRUE(w >= 1.0f && w <= config.max_weight) << "vertex " << i << ": " << w;
+    // Away from the seam and from the image's border, where voxels were seen partly.
+    const Eigen::Vector3f& p = mesh.positions[i];
+    if (std::abs(p.y()) > 0.3f || std::abs(p.x()) > 0.4f || std::abs(p.x()) < 0.05f) continue;
+    if (p.x() < 0.0f) {
+      ++left_vertices;
+      EXPECT_EQ(w, 4.0f) << "vertex " << i << " at " << p.transpose();
+    } else {
+      ++right_vertices;
+      EXPECT_EQ(w, 1.0f) << "vertex " << i << " at " << p.transpose();
+    }
+  }
+  EXPECT_GT(left_vertices, 1000u);
+  EXPECT_GT(right_vertices, 1000u);
+  // The same volume meshes to the same weights, bit for bit.
+  EXPECT_TRUE(testing::bitwiseEqual(mesh, extractMesh(volume)));
 }
 
 // --- Tracking ------------------------------------------------------------------------------------
@@ -547,6 +592,7 @@ TEST(Fusion, TracksASyntheticHandHeldSequenceWithNoise) {
   const TriangleMesh mesh = extractMesh(fusion->volume());
   EXPECT_GT(mesh.triangles.size(), 10000u);
   EXPECT_TRUE(mesh.hasColors());
+  EXPECT_TRUE(mesh.hasWeights());
 }
 
 /// Fuses the first frames of a synthetic hand-held run with at most `threads` threads.
@@ -576,7 +622,8 @@ TEST(Fusion, TheSameFramesGiveTheSameMeshWhateverTheThreadSchedule) {
     ASSERT_EQ(mesh_1.triangles.size(), mesh_n.triangles.size()) << threads << " threads";
     std::size_t moved = 0;
     for (std::size_t v = 0; v < mesh_1.positions.size(); ++v) {
-      moved += mesh_1.positions[v] != mesh_n.positions[v] || mesh_1.colors[v] != mesh_n.colors[v];
+      moved += mesh_1.positions[v] != mesh_n.positions[v] || mesh_1.colors[v] != mesh_n.colors[v] ||
+               mesh_1.weights[v] != mesh_n.weights[v];
     }
     EXPECT_EQ(moved, 0u) << "of " << mesh_1.positions.size() << " vertices, " << threads
                          << " threads";

@@ -149,8 +149,12 @@ bool bitwiseEqual(const TriangleMesh& a, const TriangleMesh& b) {
     return x.size() == y.size() &&
            (x.empty() || std::memcmp(x.data(), y.data(), x.size() * sizeof(x[0])) == 0);
   };
+  const bool same_weights =
+      a.weights.size() == b.weights.size() &&
+      (a.weights.empty() ||
+       std::memcmp(a.weights.data(), b.weights.data(), a.weights.size() * sizeof(float)) == 0);
   return same(a.positions, b.positions) && same(a.normals, b.normals) && a.colors == b.colors &&
-         a.labels == b.labels && a.triangles == b.triangles;
+         a.labels == b.labels && same_weights && a.ignore == b.ignore && a.triangles == b.triangles;
 }
 
 void expectInputError(const std::function<void()>& action, const fs::path& path,

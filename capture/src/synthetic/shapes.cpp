@@ -219,13 +219,19 @@ void append(TriangleMesh& mesh, const TriangleMesh& part) {
   const bool normals = (mesh.empty() || mesh.hasNormals()) && part.hasNormals();
   const bool colors = (mesh.empty() || mesh.hasColors()) && part.hasColors();
   const bool labels = (mesh.empty() || mesh.hasLabels()) && part.hasLabels();
+  const bool weights = (mesh.empty() || mesh.hasWeights()) && part.hasWeights();
+  const bool ignore = (mesh.empty() || mesh.hasIgnore()) && part.hasIgnore();
   if (!normals) mesh.normals.clear();
   if (!colors) mesh.colors.clear();
   if (!labels) mesh.labels.clear();
+  if (!weights) mesh.weights.clear();
+  if (!ignore) mesh.ignore.clear();
   mesh.positions.insert(mesh.positions.end(), part.positions.begin(), part.positions.end());
   if (normals) mesh.normals.insert(mesh.normals.end(), part.normals.begin(), part.normals.end());
   if (colors) mesh.colors.insert(mesh.colors.end(), part.colors.begin(), part.colors.end());
   if (labels) mesh.labels.insert(mesh.labels.end(), part.labels.begin(), part.labels.end());
+  if (weights) mesh.weights.insert(mesh.weights.end(), part.weights.begin(), part.weights.end());
+  if (ignore) mesh.ignore.insert(mesh.ignore.end(), part.ignore.begin(), part.ignore.end());
   for (const auto& t : part.triangles)
     mesh.triangles.push_back(t + Eigen::Vector3i::Constant(offset));
 }

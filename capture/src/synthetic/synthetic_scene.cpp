@@ -189,6 +189,8 @@ std::vector<Candidate> candidatePool(const SceneConfig& config) {
     m.normals.clear();
     m.colors.clear();
     m.labels.clear();
+    m.weights.clear();
+    m.ignore.clear();
     shapes::restOnGround(m);
     if (m.bounds().sizes().maxCoeff() > kMaxObjectExtent_m) {
       log::warning(file.string() + ": larger than 0.6 m, not used as an object (is it in metres?)");

@@ -19,13 +19,13 @@ struct DecimatedMesh {
 };
 
 /// The mesh with at most `max_triangles` triangles, by vertex clustering (Rossignac and Borrel):
-/// the vertices in each cubic cell of a grid become one vertex at their mean (colours averaged,
-/// normals averaged and renormalised, labels the first vertex's), and triangles that collapse are
-/// dropped, as are copies of one triangle. The cell grows until the count fits. A mesh already
-/// within the limit is returned as it is, with the identity map. Clustering, not quadric
-/// simplification: it is one linear pass and keeps a many-to-one vertex map, which is what a
-/// preview needs to paint segments of the full mesh; none of our dependencies offers it without
-/// VTK. Throws std::invalid_argument for max_triangles 0.
+/// the vertices in each cubic cell of a grid become one vertex at their mean (colours and weights
+/// averaged, normals averaged and renormalised, labels and ignore flags the first vertex's), and
+/// triangles that collapse are dropped, as are copies of one triangle. The cell grows until the
+/// count fits. A mesh already within the limit is returned as it is, with the identity map.
+/// Clustering, not quadric simplification: it is one linear pass and keeps a many-to-one vertex
+/// map, which is what a preview needs to paint segments of the full mesh; none of our
+/// dependencies offers it without VTK. Throws std::invalid_argument for max_triangles 0.
 DecimatedMesh decimateByClustering(const TriangleMesh& mesh, std::size_t max_triangles);
 
 }  // namespace objscan

@@ -45,8 +45,11 @@ struct PlyReadReport {
 };
 
 /// Reads a PLY mesh (ASCII or binary of either byte order). Vertex properties x, y, z (required),
-/// nx, ny, nz, red, green, blue (uchar, or float/double in 0..1) and object_id (any integer type,
-/// into TriangleMesh::labels) are read in any order and of any numeric type; other properties and
+/// nx, ny, nz, red, green, blue (uchar, or float/double in 0..1), object_id or label (any integer
+/// type, into TriangleMesh::labels; a file with both is refused), quality (into
+/// TriangleMesh::weights; ignored with a warning when a value is NaN, infinite or negative, as
+/// MeshLab's quality may be) and ignore (any integer type, non-zero read as 1, into
+/// TriangleMesh::ignore) are read in any order and of any numeric type; other properties and
 /// elements are skipped. Faces are the `vertex_indices` (or `vertex_index`) list of any integer
 /// count/item type; polygons are fan-triangulated, triangles that repeat a vertex are dropped and
 /// counted. A file without faces reads as a point cloud.
@@ -63,10 +66,11 @@ TriangleMesh readPly(const std::filesystem::path& path, PlyReadReport* report = 
 /// Throws std::invalid_argument if mesh.validate() fails.
 std::string encodePly(const TriangleMesh& mesh, PlyFormat format = PlyFormat::kBinaryLittleEndian);
 
-/// Writes x y z [nx ny nz] [red green blue] [object_id] as float/uchar/int and faces as `list uchar
-/// int vertex_indices`, the layout MeshLab, CloudCompare, Open3D and PCL all read. Floats in ASCII
-/// are written with the shortest text that reads back to the same value, so both formats round-trip
-/// exactly. The file appears atomically (temporary name, then rename).
+/// Writes float x y z, [float nx ny nz], [uchar red green blue], [int object_id], [float quality]
+/// (the weights), [uchar ignore] per vertex and faces as `list uchar int vertex_indices`, the
+/// layout MeshLab, CloudCompare, Open3D and PCL all read. Floats in ASCII are written with the
+/// shortest text that reads back to the same value, so both formats round-trip exactly. The file
+/// appears atomically (temporary name, then rename).
 /// Throws std::invalid_argument if mesh.validate() fails, OutputError if writing fails.
 void writePly(const std::filesystem::path& path, const TriangleMesh& mesh,
               PlyFormat format = PlyFormat::kBinaryLittleEndian);

@@ -10,9 +10,9 @@ namespace objscan {
 using Rgb8 = Eigen::Matrix<std::uint8_t, 3, 1>;
 
 /// An indexed triangle mesh. Positions in metres, in whatever frame the producer states (a fused
-/// scene is in the world frame W). `normals`, `colors` and `labels` are per vertex and either empty
-/// or exactly as long as `positions`. Triangles are counter-clockwise seen from outside (normal
-/// side).
+/// scene is in the world frame W). `normals`, `colors`, `labels`, `weights` and `ignore` are per
+/// vertex and either empty or exactly as long as `positions`. Triangles are counter-clockwise
+/// seen from outside (normal side).
 struct TriangleMesh {
   std::vector<Eigen::Vector3f> positions;
   std::vector<Eigen::Vector3f> normals;  ///< unit length, or empty
@@ -20,16 +20,27 @@ struct TriangleMesh {
   /// Ground-truth object id per vertex (0 = not an object, e.g. the desk), or empty. Stored in
   /// PLY as the vertex property `object_id`.
   std::vector<std::int32_t> labels;
+  /// The fusion weight at the vertex: how many observations the TSDF voxels there had (capped by
+  /// the volume's max_weight), interpolated along the marching-cubes edge like the colour; or
+  /// empty. Finite and >= 0. Stored in PLY as the vertex property `quality`, which MeshLab and
+  /// CloudCompare read as a scalar field.
+  std::vector<float> weights;
+  /// Per vertex, 1 = not scored by evaluation (a hand-labelled mesh's unsure parts), 0 = scored;
+  /// or empty. Stored in PLY as the vertex property `ignore` (uchar).
+  std::vector<std::uint8_t> ignore;
   std::vector<Eigen::Vector3i> triangles;
 
   bool empty() const { return positions.empty(); }
   bool hasNormals() const { return !normals.empty(); }
   bool hasColors() const { return !colors.empty(); }
   bool hasLabels() const { return !labels.empty(); }
+  bool hasWeights() const { return !weights.empty(); }
+  bool hasIgnore() const { return !ignore.empty(); }
 
   /// Throws std::invalid_argument naming the first problem found: a NaN/infinite position or
-  /// normal, normals/colours/labels whose count differs from the vertex count, a triangle index
-  /// outside [0, vertex count), or a degenerate triangle (the same vertex twice).
+  /// normal, a weight that is not a finite number >= 0, normals/colours/labels/weights/ignore
+  /// flags whose count differs from the vertex count, a triangle index outside [0, vertex count),
+  /// or a degenerate triangle (the same vertex twice).
   void validate() const;
 
   /// Axis-aligned bounds of the positions; empty box for an empty mesh.
@@ -43,8 +54,9 @@ struct TriangleMesh {
   double surfaceArea() const;
 
   /// The part of the mesh on `vertices` (increasing indices into it): those vertices with their
-  /// normals, colours and labels, renumbered in order, and the triangles whose three vertices are
-  /// all among them. Throws std::invalid_argument for an index outside the mesh or out of order.
+  /// normals, colours, labels, weights and ignore flags, renumbered in order, and the triangles
+  /// whose three vertices are all among them. Throws std::invalid_argument for an index outside
+  /// the mesh or out of order.
   TriangleMesh subset(const std::vector<std::int32_t>& vertices) const;
 
   friend bool operator==(const TriangleMesh&, const TriangleMesh&) = default;

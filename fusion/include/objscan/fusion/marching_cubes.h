@@ -13,7 +13,9 @@ namespace objscan::fusion {
 /// triangle using that edge (no duplicate vertices); triangles with a repeated vertex or zero
 /// area are dropped. Triangles are counter-clockwise seen from the positive (free, observed) side,
 /// and normals, the area-weighted mean of the adjacent triangles', point there too: outward, toward
-/// where the sensor was. Colours are interpolated along the edges.
+/// where the sensor was. Colours are interpolated along the edges, and so are the voxels' weights
+/// (observations, capped at VolumeConfig::max_weight) into TriangleMesh::weights, which every
+/// extracted mesh has: each lies in [1, max_weight].
 ///
 /// Written here rather than taken from a library: VTK's and PCL's marching cubes need a dense
 /// grid, and Open3D's works only on its own volume types. The case table is generated at start-up

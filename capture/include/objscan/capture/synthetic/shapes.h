@@ -27,7 +27,8 @@ TriangleMesh lathe(const std::vector<Eigen::Vector2f>& profile, int segments);
 TriangleMesh tube(const std::function<Eigen::Vector3f(float)>& centre,
                   const std::function<float(float)>& radius, int rings, int segments);
 
-/// Appends `part` to `mesh` (positions, triangles; normals/colours/labels if both have them).
+/// Appends `part` to `mesh` (positions, triangles; normals, colours, labels, weights and ignore
+/// flags where both have them).
 void append(TriangleMesh& mesh, const TriangleMesh& part);
 
 /// The mesh moved by `offset_m`.
