@@ -270,6 +270,15 @@ void addDiscoveryOptions(CLI::App* sub, discovery::DiscoveryConfig& config) {
       },
       "Segment as the paper does, without first cutting objects from the planes they stand on "
       "(objscan's support surfaces; see the README)");
+  sub->add_flag_callback(
+      "--no-object-set", [&config] { config.objects.enabled = false; },
+      "Rank every hypothesis by its score alone, overlapping ones included, as the paper does "
+      "(default: the object set first, whose hypotheses never overlap; see docs/discovery.md)");
+  sub->add_option("--max-iou", config.max_iou,
+                  "Non-maximum suppression: drop a hypothesis whose vertices overlap a better one's "
+                  "by more than this intersection over union (the paper's 0.7; 1 keeps all)")
+      ->check(CLI::Range(0.01, 1.0))
+      ->capture_default_str();
 }
 
 void addLabelledScenes(CLI::App* sub, std::vector<std::filesystem::path>& scenes,

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <stdexcept>
 #include <string>
@@ -155,6 +156,13 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
       if (edge_count[static_cast<std::size_t>(v)] < 0xffff) ++edge_count[static_cast<std::size_t>(v)];
     }
   }
+  // The scene's median vertex weight: a candidate's observation is its mean over this.
+  double median_weight = std::numeric_limits<double>::quiet_NaN();
+  if (mesh.hasWeights()) {
+    std::vector<float> w = mesh.weights;
+    std::nth_element(w.begin(), w.begin() + static_cast<std::ptrdiff_t>(w.size() / 2), w.end());
+    if (w[w.size() / 2] > 0.0f) median_weight = w[w.size() / 2];
+  }
   std::vector<Eigen::Vector3f> support_points;
   for (std::size_t v = 0; v < n; ++v) {
     if (supports.on_support[v]) support_points.push_back(mesh.positions[v]);
@@ -180,6 +188,11 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
         }
       }
       c.mean_edge_m = count > 0.0 ? edges / count : 0.0;
+      if (std::isfinite(median_weight)) {
+        double weight = 0.0;
+        for (std::int32_t v : s.vertices) weight += mesh.weights[static_cast<std::size_t>(v)];
+        c.observation = weight / static_cast<double>(s.vertices.size()) / median_weight;
+      }
       for (std::int32_t v : s.vertices) {
         in_region += region[static_cast<std::size_t>(v)] == own_region &&
                      !supports.on_support[static_cast<std::size_t>(v)];

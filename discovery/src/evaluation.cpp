@@ -285,13 +285,18 @@ RankingEvaluation evaluateRanking(const GroundTruthObjects& truth,
   e.objects = truth.objectIds().size();
   std::set<std::int32_t> found;
   std::vector<int> hits;
+  std::size_t scored = 0;
   for (std::size_t k = 0; k < ranked.size(); ++k) {
     RankMatch r;
     r.match = truth.bestMatch(ranked[k]);
-    r.found = isObject(r.match, min_iou) && found.insert(r.match.object_id).second;
-    r.precision = static_cast<double>(found.size()) / static_cast<double>(k + 1);
+    r.ignored = truth.ignoredShare(ranked[k]) > kMaxIgnoredShare;
+    r.found = !r.ignored && isObject(r.match, min_iou) && found.insert(r.match.object_id).second;
+    if (!r.ignored) {
+      ++scored;
+      hits.push_back(r.found);
+    }
+    r.precision = scored ? static_cast<double>(found.size()) / static_cast<double>(scored) : 0.0;
     r.recall = e.objects ? static_cast<double>(found.size()) / static_cast<double>(e.objects) : 0.0;
-    hits.push_back(r.found);
     e.ranks.push_back(r);
   }
   e.found = found.size();

@@ -22,12 +22,16 @@
 
 namespace objscan::discovery {
 
-std::vector<std::int32_t> labelsFromTruthMesh(const std::filesystem::path& truth_path,
-                                              const TriangleMesh& mesh) {
+GroundTruthObjects truthFromMesh(const std::filesystem::path& truth_path,
+                                 const TriangleMesh& mesh) {
   const TriangleMesh truth = readPly(truth_path);
-  if (!truth.hasLabels()) throw InputError(truth_path, "no per-vertex object_id");
+  if (!truth.hasLabels()) throw InputError(truth_path, "no per-vertex object_id or label");
   try {
-    return transferLabels(mesh, truth);
+    if (truth.hasIgnore()) {
+      LabelTransfer transfer = transferVertexLabels(mesh, truth, kLabelledMeshDistanceM);
+      return GroundTruthObjects(std::move(transfer.labels), std::move(transfer.ignore));
+    }
+    return GroundTruthObjects(transferLabels(mesh, truth));
   } catch (const std::invalid_argument& e) {
     throw InputError(truth_path, e.what());
   }
@@ -69,21 +73,21 @@ void prepareSceneMesh(TriangleMesh& mesh) {
   mesh.validate();
 }
 
-std::vector<std::int32_t> groundTruthLabels(const fs::path& argument, const TriangleMesh& mesh) {
+GroundTruthObjects groundTruth(const fs::path& argument, const TriangleMesh& mesh) {
   if (fs::is_directory(argument)) {
     const fs::path truth_path = argument / "scene_gt.ply";
     if (!fs::is_regular_file(truth_path)) {
       throw InputError(argument,
                        "a labelled scene folder needs scene_gt.ply (objscan synth writes it)");
     }
-    return labelsFromTruthMesh(truth_path, mesh);
+    return truthFromMesh(truth_path, mesh);
   }
   if (!mesh.hasLabels()) {
     throw InputError(argument,
                      "no labels: give a folder with scene_gt.ply and a fused mesh, or a "
-                     "mesh whose vertices carry object_id");
+                     "mesh whose vertices carry object_id (or label, with ignore)");
   }
-  return mesh.labels;
+  return GroundTruthObjects(mesh.labels, mesh.ignore);
 }
 
 CatalogSegment toCatalog(const Segment& s, const ShapeMeasures& m) {
@@ -350,7 +354,7 @@ SceneInput loadScene(const fs::path& argument, const SceneReading& reading) {
   if (reading.hash) scene.content_hash = contentHash(mesh_path);
   if (reading.labelled) {
     try {
-      scene.truth.emplace(groundTruthLabels(argument, scene.mesh));
+      scene.truth.emplace(groundTruth(argument, scene.mesh));
     } catch (const std::invalid_argument& e) {
       throw InputError(argument, e.what());
     }

@@ -32,7 +32,7 @@ fs::path findGroundTruth(const std::string& source) {
 void requireLabelledMesh(const fs::path& path) {
   if (!readPly(path).hasLabels()) {
     throw InputError(path,
-                     "no per-vertex object_id: not a ground-truth scene (objscan synth's "
+                     "no per-vertex object_id or label: not a ground-truth scene (objscan synth's "
                      "scene_gt.ply is one)");
   }
 }
@@ -40,15 +40,17 @@ void requireLabelledMesh(const fs::path& path) {
 report::Evaluation evaluateAgainstTruth(const fs::path& truth, const discovery::SceneDiscovery& run,
                                         double min_iou) {
   const discovery::DiscoveredScene& scene = run.scenes.at(0);
-  const discovery::GroundTruthObjects objects(discovery::labelsFromTruthMesh(truth, scene.mesh));
+  const discovery::GroundTruthObjects objects = discovery::truthFromMesh(truth, scene.mesh);
   std::vector<std::vector<std::int32_t>> ranked;
   for (const discovery::RankedHypothesis& r : run.ranked) {
     if (r.scene == 0) ranked.push_back(r.hypothesis.segment.vertices);
   }
   std::map<std::int32_t, std::string> names;
+  // Names: scene_gt.json beside scene_gt.ply, or a labelled mesh's objects.json.
   fs::path json = truth;
   json.replace_extension(".json");
   std::error_code ec;
+  if (!fs::is_regular_file(json, ec)) json = truth.parent_path() / "objects.json";
   if (fs::is_regular_file(json, ec)) {
     try {
       names = capture::readSceneObjectNames(json);

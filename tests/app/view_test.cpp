@@ -767,7 +767,7 @@ TEST(ViewPage, DrawsSelectsAndLabelsInChromiumAndTrainUsesTheLabels) {
     discovery::Catalog catalog(catalog_path);
     const TriangleMesh mesh = readPly(res / "mesh.ply");
     const discovery::GroundTruthObjects truth(
-        discovery::labelsFromTruthMesh(scannedScene() / "syn" / "scene_gt.ply", mesh));
+        discovery::truthFromMesh(scannedScene() / "syn" / "scene_gt.ply", mesh));
     for (const discovery::CatalogSegment& s : catalog.segments(catalog.scenes().at(0).id, true)) {
       best_iou[s.id] = truth.bestMatch(s.vertices).iou;
     }

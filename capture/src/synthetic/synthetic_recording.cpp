@@ -227,7 +227,9 @@ std::map<std::int32_t, std::string> readSceneObjectNames(const fs::path& scene_g
   try {
     const nlohmann::json doc = nlohmann::json::parse(readWholeFile(scene_gt_json));
     for (const nlohmann::json& o : doc.at("objects")) {
-      names[o.at("id").get<std::int32_t>()] = o.value("name", std::string());
+      // objscan synth's "id", or a hand-labelled mesh's objects.json "label".
+      names[o.at(o.contains("id") ? "id" : "label").get<std::int32_t>()] =
+          o.value("name", std::string());
     }
   } catch (const nlohmann::json::exception& e) {
     throw InputError(scene_gt_json,

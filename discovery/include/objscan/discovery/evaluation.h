@@ -64,11 +64,17 @@ void writeEvalCsv(const EvalResult& result, const std::filesystem::path& curves_
 void writePrPlot(const EvalResult& result, const std::filesystem::path& png, int width = 900,
                  int height = 700);
 
+/// A hypothesis more than half of whose vertices are ignored by the labels is not scored.
+inline constexpr double kMaxIgnoredShare = 0.5;
+
 /// One rank of a ranked list matched against the ground truth.
 struct RankMatch {
   ObjectMatch match;       ///< the object it overlaps most
   bool found = false;      ///< it finds that object: IoU >= min_iou and no better rank found it
-  double precision = 0.0;  ///< objects found up to this rank / rank
+  /// Not scored: more than kMaxIgnoredShare of it lies where the labels say nothing
+  /// (GroundTruthObjects' ignore flags); it counts neither for nor against the ranking.
+  bool ignored = false;
+  double precision = 0.0;  ///< objects found up to this rank / ranks scored up to it
   double recall = 0.0;     ///< objects found up to this rank / objects
 };
 
@@ -83,6 +89,7 @@ struct RankingEvaluation {
 
 /// Matches ranked vertex sets (best first, indices into the scene mesh) with the objects: a rank
 /// finds an object when their vertex IoU reaches `min_iou` and no better rank found it already.
+/// Ranks in ignored regions are skipped (RankMatch::ignored).
 RankingEvaluation evaluateRanking(const GroundTruthObjects& truth,
                                   const std::vector<std::vector<std::int32_t>>& ranked,
                                   double min_iou = 0.7);

@@ -17,6 +17,21 @@ namespace objscan::discovery {
 std::vector<std::int32_t> transferLabels(const TriangleMesh& mesh, const TriangleMesh& truth,
                                          float max_distance_m = 0.01f);
 
+/// A hand-labelled fusion's labels moved onto another fusion of the same frames: each vertex
+/// takes the label and ignore flag of the nearest labelled vertex within this distance (1.5 cm,
+/// as the labels of ../shared/data/tum_fr2_desk_50/objects/ are meant to be moved).
+inline constexpr float kLabelledMeshDistanceM = 0.015f;
+
+struct LabelTransfer {
+  std::vector<std::int32_t> labels;
+  std::vector<std::uint8_t> ignore;  ///< 1 where the labels say nothing, or no labelled vertex is near
+};
+/// Per vertex of `mesh`, the label and ignore flag (TriangleMesh::ignore; 0 when `truth` has
+/// none) of `truth`'s nearest vertex within `max_distance_m`; ignored where none is that near.
+/// Throws std::invalid_argument when `truth` has no labels. Runs in parallel.
+LabelTransfer transferVertexLabels(const TriangleMesh& mesh, const TriangleMesh& truth,
+                                   float max_distance_m = kLabelledMeshDistanceM);
+
 struct ObjectMatch {
   std::int32_t object_id = 0;  ///< 0 when the segment touches no object vertex
   double iou = 0.0;            ///< vertex-set intersection over union with that object
@@ -27,11 +42,19 @@ class GroundTruthObjects {
  public:
   /// `vertex_labels`: an object id per vertex of the scene mesh (0 = none), e.g. from
   /// transferLabels or a mesh's own `object_id` property. Ids must lie in 0..1,000,000
-  /// (std::invalid_argument otherwise).
-  explicit GroundTruthObjects(std::vector<std::int32_t> vertex_labels);
+  /// (std::invalid_argument otherwise). `ignore` (empty, or one flag per vertex): 1 where the
+  /// labels say nothing (a hand-labelled scene's lamp or plant, the band where an object meets
+  /// the table): such vertices count in no object and in no hypothesis.
+  explicit GroundTruthObjects(std::vector<std::int32_t> vertex_labels,
+                              std::vector<std::uint8_t> ignore = {});
 
-  /// The object whose vertex set has the highest IoU with `vertices` (increasing indices).
+  /// The object whose vertex set has the highest IoU with `vertices` (increasing indices),
+  /// ignored vertices left out of both.
   ObjectMatch bestMatch(const std::vector<std::int32_t>& vertices) const;
+
+  /// The share of `vertices` that are ignored (0 without an ignore mask).
+  double ignoredShare(const std::vector<std::int32_t>& vertices) const;
+  bool hasIgnored() const { return !ignore_.empty(); }
 
   /// The ids of the objects with at least one vertex, increasing.
   std::vector<std::int32_t> objectIds() const;
@@ -41,7 +64,10 @@ class GroundTruthObjects {
 
  private:
   std::vector<std::int32_t> labels_;
-  std::vector<std::size_t> sizes_;  ///< by id
+  bool ignored(std::size_t v) const { return !ignore_.empty() && ignore_[v] != 0; }
+
+  std::vector<std::uint8_t> ignore_;
+  std::vector<std::size_t> sizes_;  ///< by id, ignored vertices left out
 };
 
 /// The paper's label (section IV-C): a segment is an object when its IoU with one ground-truth

@@ -76,11 +76,13 @@ SceneInput sceneFromCloud(std::string name, const OrganizedCloud& cloud, bool la
 /// Throws std::invalid_argument for a mesh discovery cannot use.
 SceneInput sceneFromMesh(std::string name, TriangleMesh mesh, std::string content_hash = {});
 
-/// The object id of each vertex of `mesh`, moved from a ground-truth mesh whose vertices carry
-/// object_id (objscan synth's scene_gt.ply) by the nearest surface within 1 cm. Throws InputError
-/// naming `truth_path` when it cannot be read or has no ids.
-std::vector<std::int32_t> labelsFromTruthMesh(const std::filesystem::path& truth_path,
-                                              const TriangleMesh& mesh);
+/// The ground-truth objects of `mesh` from a labelled mesh of the same scene in the same frame:
+/// objscan synth's scene_gt.ply (per-vertex object_id; each vertex takes the id of the nearest
+/// surface within 1 cm), or a hand-labelled fusion with per-vertex label and ignore flags (each
+/// vertex takes both from the nearest labelled vertex within kLabelledMeshDistanceM, and is
+/// ignored where there is none). Throws InputError naming `truth_path` when it cannot be read or
+/// has no ids.
+GroundTruthObjects truthFromMesh(const std::filesystem::path& truth_path, const TriangleMesh& mesh);
 
 /// The default catalog: $OBJSCAN_CATALOG, else $XDG_DATA_HOME/objscan/catalog.sqlite, else
 /// ~/.local/share/objscan/catalog.sqlite (its folder is created).

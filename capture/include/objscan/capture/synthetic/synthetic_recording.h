@@ -69,7 +69,8 @@ std::vector<Visibility> writeSyntheticRecording(const SyntheticScene& scene, con
                                                 const std::filesystem::path& out_dir,
                                                 ProgressBar* progress = nullptr);
 
-/// The object names of a scene_gt.json that writeSyntheticRecording wrote, by object id. Throws
+/// The object names of a scene_gt.json that writeSyntheticRecording wrote (or of a hand-labelled
+/// mesh's objects.json, whose objects give their id as "label"), by object id. Throws
 /// InputError naming the file when it is not such a file.
 std::map<std::int32_t, std::string> readSceneObjectNames(
     const std::filesystem::path& scene_gt_json);
