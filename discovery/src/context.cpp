@@ -44,32 +44,22 @@ bool contains(const std::vector<std::int32_t>& sorted, std::int32_t v) {
   return std::binary_search(sorted.begin(), sorted.end(), v);
 }
 
-/// Whether two increasing vertex lists share a vertex.
-bool intersect(const std::vector<std::int32_t>& a, const std::vector<std::int32_t>& b) {
-  if (a.empty() || b.empty() || a.back() < b.front() || b.back() < a.front()) return false;
-  std::size_t i = 0, j = 0;
-  while (i < a.size() && j < b.size()) {
-    if (a[i] == b[j]) return true;
-    if (a[i] < b[j]) {
-      ++i;
-    } else {
-      ++j;
-    }
-  }
-  return false;
-}
-
 /// How far from a candidate's foot the support's own vertices may begin: the rounded fold where
 /// an object meets its support goes with the object (SupportConfig::max_angle_deg), about a
 /// voxel or two wide.
 constexpr float kSupportSearchM = 0.02f;
+
+/// A surface faces up when its normal lies within this angle of the support's (the support
+/// regions' own tolerance, SupportConfig::max_angle_deg).
+constexpr float kUpFacingDeg = 25.0f;
+/// ... and holds a candidate up when at least this many of its vertices lie under the foot.
+constexpr std::size_t kMinSurfaceUnder = 5;
 
 /// What the first pass finds of one candidate.
 struct Lowest {
   int plane = -1;        ///< the plane it is measured against (under it), -1 without one
   float height = 0.0f;   ///< its lowest vertex's height above that plane
   std::int32_t vertex = -1;
-  float centroid_height = 0.0f;
 };
 
 }  // namespace
@@ -105,9 +95,6 @@ void ContextConfig::validate() const {
   }
   if (!(below_m >= 0.0f) || !std::isfinite(below_m)) {
     throw std::invalid_argument("the context's depth below a support must be a finite number >= 0");
-  }
-  if (!(min_stack_share >= 0.0 && min_stack_share <= 1.0)) {
-    throw std::invalid_argument("the context's min_stack_share must be in [0, 1]");
   }
 }
 
@@ -208,18 +195,16 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
       // lies above.
       Lowest& low = lowest[i];
       for (std::size_t k = 0; k < planes.size(); ++k) {
-        float min_height = std::numeric_limits<float>::infinity(), sum = 0.0f;
+        float min_height = std::numeric_limits<float>::infinity();
         std::int32_t at = -1;
         for (std::int32_t v : s.vertices) {
           const float h = planes[k].height(mesh.positions[static_cast<std::size_t>(v)]);
-          sum += h;
           if (h < min_height) {
             min_height = h;
             at = v;
           }
         }
         if (min_height < -config.below_m) continue;  // through or under this plane
-        const float centroid = sum / static_cast<float>(s.vertices.size());
         // Its foot: vertices within the gap of the plane (at most 64, spread evenly); it stands
         // when one of them has the support's surface near (the support, not a hole's floor).
         bool on = false;
@@ -239,82 +224,71 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
         }
         if (on) {
           c.footing = Footing::kSupport;
-          low = {static_cast<int>(k), min_height, at, centroid};
+          low = {static_cast<int>(k), min_height, at};
           break;
         }
         if (low.plane < 0 || min_height < low.height) {
-          low = {static_cast<int>(k), min_height, at, centroid};
+          low = {static_cast<int>(k), min_height, at};
         }
       }
       if (low.plane >= 0) c.height_m = low.height;
     }
   });
 
-  // Stacks: a candidate whose lowest part touches one that stands on a support, lower than it
-  // and sharing no vertex with it, stands on that one. Each vertex knows the smallest such
-  // candidate holding it.
-  std::vector<std::int32_t> holder(n, -1);
-  std::vector<std::size_t> grounded;
+  // Stacks and boards too small to be supports: a candidate whose foot rests on a surface that
+  // faces up (as its support's plane does), level with or under the foot and not its own, stands
+  // on that: a box on a box, a can on a shelf board that no support plane holds.
+  // Up is the normal of the plane most candidates stand on (a table, the floor, a shelf board):
+  // a candidate's own lowest plane may be the wall it leans on.
+  std::vector<std::size_t> standing(planes.size(), 0);
   for (std::size_t i = 0; i < segments.size(); ++i) {
-    if (out[i].footing == Footing::kSupport) grounded.push_back(i);
+    if (out[i].footing == Footing::kSupport) ++standing[static_cast<std::size_t>(lowest[i].plane)];
   }
-  std::stable_sort(grounded.begin(), grounded.end(), [&](std::size_t a, std::size_t b) {
-    return segments[a].vertices.size() > segments[b].vertices.size();
-  });
-  std::vector<Eigen::Vector3f> held_points;
-  std::vector<std::int32_t> held_vertex;
-  for (std::size_t i : grounded) {
-    for (std::int32_t v : segments[i].vertices) holder[static_cast<std::size_t>(v)] = static_cast<std::int32_t>(i);
-  }
-  for (std::size_t v = 0; v < n; ++v) {
-    if (holder[v] >= 0) {
-      held_points.push_back(mesh.positions[v]);
-      held_vertex.push_back(static_cast<std::int32_t>(v));
-    }
-  }
-  if (held_points.empty()) return out;
-  const PointIndex held_index(held_points);
+  if (planes.empty() || *std::max_element(standing.begin(), standing.end()) == 0) return out;
+  const UpPlane& plane =
+      planes[static_cast<std::size_t>(std::max_element(standing.begin(), standing.end()) -
+                                      standing.begin())];
+  const PointIndex all_index(mesh.positions);
+  const float min_cos = std::cos(kUpFacingDeg * static_cast<float>(M_PI) / 180.0f);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, segments.size()),
                     [&](const tbb::blocked_range<std::size_t>& range) {
     std::vector<std::pair<std::uint32_t, float>> found;
+    std::vector<std::int32_t> under;
     for (std::size_t i = range.begin(); i < range.end(); ++i) {
       SegmentContext& c = out[i];
-      const Lowest& low = lowest[i];
-      if (c.footing != Footing::kNone || low.plane < 0 ||
-          c.share_of_region < config.min_stack_share) {
-        continue;
-      }
+      if (c.footing != Footing::kNone) continue;
       const Segment& s = segments[i];
-      const UpPlane& plane = planes[static_cast<std::size_t>(low.plane)];
+      float lowest_height = std::numeric_limits<float>::infinity();
+      for (std::int32_t v : s.vertices) {
+        lowest_height =
+            std::min(lowest_height, plane.height(mesh.positions[static_cast<std::size_t>(v)]));
+      }
       const float gap =
           std::max(config.gap_m, config.gap_edges * static_cast<float>(c.mean_edge_m));
-      // Its lowest vertices: within the gap of the lowest, at most 64 of them spread evenly.
-      std::vector<std::int32_t> bottom;
+      // Its foot: the vertices within the gap of its lowest, at most 64 of them spread evenly.
+      std::vector<std::int32_t> foot;
       for (std::int32_t v : s.vertices) {
-        if (plane.height(mesh.positions[static_cast<std::size_t>(v)]) <= low.height + gap) {
-          bottom.push_back(v);
+        if (plane.height(mesh.positions[static_cast<std::size_t>(v)]) <= lowest_height + gap) {
+          foot.push_back(v);
         }
       }
-      const std::size_t stride = (bottom.size() + 63) / 64;
-      std::int32_t tried = -1;
-      for (std::size_t b = 0; b < bottom.size() && c.footing == Footing::kNone; b += stride) {
-        held_index.within(mesh.positions[static_cast<std::size_t>(bottom[b])], gap, &found);
-        for (const auto& [point, distance_sq] : found) {
-          const std::int32_t v = held_vertex[point];
-          const std::int32_t t = holder[static_cast<std::size_t>(v)];
-          if (t == tried || contains(s.vertices, v)) continue;
-          tried = t;
-          const Lowest& under = lowest[static_cast<std::size_t>(t)];
-          const float t_centroid = under.plane == low.plane
-                                       ? under.centroid_height
-                                       : std::numeric_limits<float>::infinity();
-          if (t_centroid < low.centroid_height &&
-              !intersect(segments[static_cast<std::size_t>(t)].vertices, s.vertices)) {
-            c.footing = Footing::kOnObject;
-            break;
-          }
+      const std::size_t stride = (foot.size() + 63) / 64;
+      under.clear();
+      for (std::size_t f = 0; f < foot.size(); f += stride) {
+        const Eigen::Vector3f& p = mesh.positions[static_cast<std::size_t>(foot[f])];
+        const float foot_height = plane.height(p);
+        all_index.within(p, gap, &found);
+        for (const auto& [u, distance_sq] : found) {
+          const std::int32_t v = static_cast<std::int32_t>(u);
+          if (contains(s.vertices, v)) continue;
+          if (plane.up.dot(mesh.normals[u]) < min_cos) continue;
+          if (plane.height(mesh.positions[u]) > foot_height + 0.5f * gap) continue;
+          under.push_back(v);
         }
       }
+      std::sort(under.begin(), under.end());
+      under.erase(std::unique(under.begin(), under.end()), under.end());
+      if (under.size() >= kMinSurfaceUnder) c.footing = Footing::kOnObject;
     }
   });
   return out;

@@ -135,6 +135,9 @@ void DiscoveryConfig::validate() const {
 
 void ObjectSetConfig::validate() const {
   context.validate();
+  if (!(region_share_weight >= 0.0) || !std::isfinite(region_share_weight)) {
+    throw std::invalid_argument("the object set's region_share_weight must be a number >= 0");
+  }
   if (!(max_taken_share >= 0.0 && max_taken_share < 1.0)) {
     throw std::invalid_argument("the object set's max_taken_share must be in [0, 1)");
   }
@@ -317,6 +320,9 @@ std::vector<Hypothesis> rankCandidates(const SceneCandidates& candidates,
   return suppress(candidates, scores, max_iou);
 }
 
+/// The smallest region share the object score's logarithm takes (ObjectSetConfig).
+constexpr double kMinRegionShare = 0.001;
+
 std::vector<Hypothesis> rankObjects(const TriangleMesh& mesh, const SceneCandidates& candidates,
                                     const ObjectnessModel& model, const DiscoveryConfig& config) {
   const std::size_t n = candidates.segments.size();
@@ -331,7 +337,10 @@ std::vector<Hypothesis> rankObjects(const TriangleMesh& mesh, const SceneCandida
   std::vector<double> object_scores(n);
   for (std::size_t i = 0; i < n; ++i) {
     const double count = static_cast<double>(candidates.segments[i].vertices.size());
-    object_scores[i] = scores[i] * count / (count + evidence);
+    object_scores[i] =
+        scores[i] * count / (count + evidence) +
+        config.objects.region_share_weight *
+            std::log(std::max(candidates.context[i].share_of_region, kMinRegionShare));
   }
   // Those on a support first, then those on another candidate, then those that float; each
   // group by object score; ties keep the candidates' order.

@@ -19,7 +19,9 @@ namespace objscan::discovery {
 enum class Footing : std::uint8_t {
   kNone,       ///< nothing holds it up: a piece of foliage, a fragment of a lamp or a wall's edge
   kSupport,    ///< its lowest part touches a support surface (a table, a shelf board, the floor)
-  kOnObject,   ///< its lowest part touches a candidate that stands on a support (a stack)
+  /// its lowest part rests on another surface facing up: an object under it (a stack), or a
+  /// shelf board too small to be a support
+  kOnObject,
 };
 /// "none", "support", "object".
 const char* toString(Footing footing);
@@ -37,10 +39,6 @@ struct ContextConfig {
   float gap_edges = 3.0f;
   /// ... and lies no further than this below it (noise, and a fold rounded into the support).
   float below_m = 0.02f;
-  /// A candidate stands on another only when it is at least this share of its region
-  /// (SegmentContext::share_of_region): a box on a box is half of the stack, a leaf resting on
-  /// a leaf a few percent of its plant.
-  double min_stack_share = 0.2;
 
   /// Throws std::invalid_argument naming the first bad field.
   void validate() const;
