@@ -37,8 +37,18 @@ void printDiscoverSummary(const DiscoverCommandOptions& options,
     cached += s.from_catalog ? 1 : 0;
   }
   std::printf("scenes        %zu (%zu from the catalog)\n", run.scenes.size(), cached);
-  std::printf("candidates    %zu after the filters; %zu hypotheses after suppression\n", candidates,
-              run.ranked.size());
+  const std::size_t objects = static_cast<std::size_t>(
+      std::count_if(run.ranked.begin(), run.ranked.end(), [](const discovery::RankedHypothesis& r) {
+        return r.hypothesis.object_rank > 0;
+      }));
+  if (options.config.objects.enabled) {
+    std::printf("candidates    %zu after the filters; %zu hypotheses: %zu objects (no two "
+                "overlap), then %zu alternatives\n",
+                candidates, run.ranked.size(), objects, run.ranked.size() - objects);
+  } else {
+    std::printf("candidates    %zu after the filters; %zu hypotheses after suppression\n",
+                candidates, run.ranked.size());
+  }
   std::printf("scored by     %s%s\n", discovery::toString(run.scorer),
               options.model.empty() ? " of the z-normalised measures"
                                     : (" (" + options.model.string() + ")").c_str());
@@ -47,10 +57,14 @@ void printDiscoverSummary(const DiscoverCommandOptions& options,
   const bool many = run.scenes.size() > 1;
   for (std::size_t i = 0; i < std::min<std::size_t>(run.ranked.size(), 10); ++i) {
     const discovery::Hypothesis& h = run.ranked[i].hypothesis;
-    std::printf("  #%-3zu score %+.3f  %5zu vertices  %.0f x %.0f x %.0f mm%s%s\n", i + 1, h.score,
-                h.segment.vertices.size(), 1e3 * h.segment.extents[0], 1e3 * h.segment.extents[1],
-                1e3 * h.segment.extents[2], many ? "  " : "",
-                many ? run.scenes[run.ranked[i].scene].name.c_str() : "");
+    const char* footing = h.object_rank == 0                                  ? ""
+                          : h.context.footing == discovery::Footing::kSupport  ? "  on a support"
+                          : h.context.footing == discovery::Footing::kOnObject ? "  on a surface"
+                                                                               : "  floating";
+    std::printf("  #%-3zu score %+.3f  %5zu vertices  %.0f x %.0f x %.0f mm%s%s%s\n", i + 1,
+                h.score, h.segment.vertices.size(), 1e3 * h.segment.extents[0],
+                1e3 * h.segment.extents[1], 1e3 * h.segment.extents[2], footing,
+                many ? "  " : "", many ? run.scenes[run.ranked[i].scene].name.c_str() : "");
   }
   if (options.timings) {
     for (const discovery::DiscoveredScene& s : run.scenes) {

@@ -470,7 +470,7 @@ Evaluation evaluationFrom(const discovery::RankingEvaluation& e, const std::stri
     const auto name = names.find(m.match.object_id);
     out.ranks.push_back({k + 1, m.match.object_id,
                          m.match.object_id != 0 && name != names.end() ? name->second : "",
-                         m.match.iou, m.found, m.precision, m.recall});
+                         m.match.iou, m.found, m.ignored, m.precision, m.recall});
   }
   return out;
 }
@@ -483,7 +483,8 @@ void writeEvaluation(const fs::path& file, const Evaluation& e) {
                        {"object_id", r.object_id},
                        {"object", r.object.empty() ? Json(nullptr) : Json(r.object)},
                        {"iou", r.iou},
-                       {"found", r.found}});
+                       {"found", r.found},
+                       {"ignored", r.ignored}});
   }
   writeJson(file, {{"ground_truth", e.ground_truth},
                    {"objects", e.objects ? Json(*e.objects) : Json(nullptr)},
@@ -521,6 +522,7 @@ Evaluation readEvaluation(const fs::path& file) {
     r.object = h.string("object").value_or("");
     r.iou = h.number("iou").value_or(NAN);
     r.found = h.boolean("found").value_or(r.iou >= e.min_iou);
+    r.ignored = h.boolean("ignored").value_or(false);
   }
   for (auto& [rank, r] : by_rank) e.ranks.push_back(r);
   return e;

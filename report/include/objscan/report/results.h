@@ -115,6 +115,8 @@ struct EvaluatedRank {
   std::string object;          ///< its name (scene_gt.json); empty when unknown
   double iou = 0.0;
   bool found = false;  ///< this rank found the object (no better rank had)
+  /// Not scored: mostly where the labels say nothing (discovery::RankMatch::ignored).
+  bool ignored = false;
   double precision = 0.0, recall = 0.0;
 };
 

@@ -1,0 +1,257 @@
+// A candidate's context and the object set: on a table, a box standing on it, a box stacked on
+// that one and a box floating 15 cm above the table; what stands on what, how the object set
+// orders them, and that its hypotheses never share a vertex.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+#include <vector>
+
+#include "objscan/discovery/context.h"
+#include "objscan/discovery/discover.h"
+#include "objscan/discovery/mesh_graph.h"
+#include "objscan/discovery/segment.h"
+#include "objscan/discovery/supports.h"
+#include "test_support.h"
+
+namespace objscan::discovery {
+namespace {
+
+using objscan::testing::addGridTriangles;
+using objscan::testing::makeHeightField;
+
+constexpr float kTable = 0.25f;  ///< the table's height, metres
+
+/// Appends an axis-aligned box of side `side` whose bottom face is at `bottom` (centred on x, y)
+/// as six separate n x n grids, each with its own face's normal, and returns its vertices.
+std::vector<std::int32_t> addBox(TriangleMesh& mesh, float x, float y, float bottom, float side,
+                                 int n = 10) {
+  std::vector<std::int32_t> vertices;
+  const Eigen::Vector3f centre(x, y, bottom + side / 2);
+  for (int axis = 0; axis < 3; ++axis) {
+    for (const float sign : {-1.0f, 1.0f}) {
+      const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+      const std::int32_t first = static_cast<std::int32_t>(mesh.positions.size());
+      Eigen::Vector3f normal = Eigen::Vector3f::Zero();
+      normal[axis] = sign;
+      for (int j = 0; j < n; ++j) {
+        for (int i = 0; i < n; ++i) {
+          Eigen::Vector3f p = centre + normal * (side / 2);
+          p[u] += side * (static_cast<float>(i) / static_cast<float>(n - 1) - 0.5f);
+          p[v] += side * (static_cast<float>(j) / static_cast<float>(n - 1) - 0.5f);
+          vertices.push_back(static_cast<std::int32_t>(mesh.positions.size()));
+          mesh.positions.push_back(p);
+          mesh.normals.push_back(normal);
+        }
+      }
+      TriangleMesh grid;
+      addGridTriangles(grid, n, n);
+      for (const Eigen::Vector3i& t : grid.triangles) {
+        // Counter-clockwise seen from outside whichever face this is.
+        const bool flip = (sign < 0.0f);
+        mesh.triangles.emplace_back(first + t[0], first + (flip ? t[2] : t[1]),
+                                    first + (flip ? t[1] : t[2]));
+      }
+    }
+  }
+  std::sort(vertices.begin(), vertices.end());
+  return vertices;
+}
+
+struct Scene {
+  TriangleMesh mesh;
+  std::vector<Segment> boxes;  ///< standing, stacked, floating
+};
+
+Scene tableWithBoxes() {
+  Scene s;
+  s.mesh = makeHeightField(161, 0.4f, [](float, float) { return kTable; });
+  s.boxes.push_back(describeSegment(s.mesh, addBox(s.mesh, -0.15f, 0.0f, kTable, 0.08f)));
+  s.boxes.push_back(describeSegment(s.mesh, addBox(s.mesh, -0.15f, 0.0f, kTable + 0.08f, 0.06f)));
+  s.boxes.push_back(describeSegment(s.mesh, addBox(s.mesh, 0.15f, 0.0f, kTable + 0.15f, 0.06f)));
+  return s;
+}
+
+std::vector<SegmentContext> contextsOf(const Scene& s) {
+  const MeshGraph graph = buildMeshGraph(s.mesh);
+  const Supports supports = findSupports(s.mesh, graph, SupportConfig{}, 3000);
+  EXPECT_EQ(supports.planes.size(), 1u);
+  return segmentContexts(s.mesh, graph, supports, s.boxes);
+}
+
+TEST(Context, ABoxOnTheTableStandsOnItsSupportOneOnTopOnItAndOneInTheAirOnNothing) {
+  const Scene s = tableWithBoxes();
+  const std::vector<SegmentContext> c = contextsOf(s);
+  ASSERT_EQ(c.size(), 3u);
+  EXPECT_EQ(c[0].footing, Footing::kSupport);
+  EXPECT_EQ(c[1].footing, Footing::kOnObject);
+  EXPECT_EQ(c[2].footing, Footing::kNone);
+  // Heights of the lowest vertex over the table, to the millimetre.
+  EXPECT_NEAR(c[0].height_m, 0.0, 1e-3);
+  EXPECT_NEAR(c[1].height_m, 0.08, 1e-3);
+  EXPECT_NEAR(c[2].height_m, 0.15, 1e-3);
+  // Each box face is a region of its own off the table (it shares no edge with anything): a
+  // candidate's share is of the region it starts in.
+  for (const SegmentContext& k : c) EXPECT_DOUBLE_EQ(k.share_of_region, 1.0);
+  // The noise scale: the boxes' grid spacing (8 or 6 cm over 9 intervals) and diagonals.
+  EXPECT_GT(c[0].mean_edge_m, 0.08 / 9);
+  EXPECT_LT(c[0].mean_edge_m, 0.08 / 9 * std::sqrt(2.0));
+  EXPECT_TRUE(std::isnan(c[0].observation));  // the mesh has no fusion weights
+}
+
+TEST(Context, ObservationIsTheMeanWeightOverTheScenesMedian) {
+  Scene s = tableWithBoxes();
+  s.mesh.weights.assign(s.mesh.positions.size(), 10.0f);
+  for (std::int32_t v : s.boxes[2].vertices) s.mesh.weights[static_cast<std::size_t>(v)] = 2.5f;
+  const std::vector<SegmentContext> c = contextsOf(s);
+  EXPECT_DOUBLE_EQ(c[0].observation, 1.0);
+  EXPECT_DOUBLE_EQ(c[2].observation, 0.25);
+}
+
+TEST(Context, ABoxAsHighAsTheStackedOneButBesideItFloats) {
+  Scene s = tableWithBoxes();
+  // The floating box moved down to the stacked one's height, 20 cm away from the stack.
+  s.boxes.pop_back();
+  s.boxes.push_back(describeSegment(s.mesh, addBox(s.mesh, 0.1f, 0.1f, kTable + 0.08f, 0.06f)));
+  const std::vector<SegmentContext> c = contextsOf(s);
+  EXPECT_EQ(c[1].footing, Footing::kOnObject);
+  EXPECT_EQ(c[2].footing, Footing::kNone);
+}
+
+TEST(Context, BadConfigsAndSupportFlagsAreRefused) {
+  const Scene s = tableWithBoxes();
+  const MeshGraph graph = buildMeshGraph(s.mesh);
+  Supports supports;
+  supports.on_support.assign(3, 0);
+  EXPECT_THROW(segmentContexts(s.mesh, graph, supports, s.boxes), std::invalid_argument);
+  supports.on_support.assign(s.mesh.positions.size(), 0);
+  ContextConfig bad;
+  bad.gap_m = -0.01f;
+  EXPECT_THROW(segmentContexts(s.mesh, graph, supports, s.boxes, bad), std::invalid_argument);
+  bad = ContextConfig{};
+  bad.below_m = std::nanf("");
+  EXPECT_THROW(bad.validate(), std::invalid_argument);
+  // Without supports nothing stands.
+  for (const SegmentContext& c : segmentContexts(s.mesh, graph, supports, s.boxes)) {
+    EXPECT_EQ(c.footing, Footing::kNone);
+  }
+}
+
+/// The three boxes as candidates, with the same measures each, plus the two lower ones as one
+/// candidate (a coarser scale's segment) that scores best.
+SceneCandidates candidatesOf(const Scene& s) {
+  SceneCandidates c;
+  c.segments = s.boxes;
+  std::vector<std::int32_t> both = s.boxes[0].vertices;
+  both.insert(both.end(), s.boxes[1].vertices.begin(), s.boxes[1].vertices.end());
+  std::sort(both.begin(), both.end());
+  c.segments.push_back(describeSegment(s.mesh, both));
+  ShapeMeasures m;
+  m.compactness = 0.5;
+  c.measures.assign(c.segments.size(), m);
+  c.measures[3].compactness = 0.9;  // the pair looks most compact
+  const MeshGraph graph = buildMeshGraph(s.mesh);
+  const Supports supports = findSupports(s.mesh, graph, SupportConfig{}, 3000);
+  c.context = segmentContexts(s.mesh, graph, supports, c.segments);
+  c.effective.evidence_vertices = 100;
+  return c;
+}
+
+TEST(ObjectSet, StandingCandidatesComeFirstAndNoTwoObjectsShareAVertex) {
+  const Scene s = tableWithBoxes();
+  const SceneCandidates candidates = candidatesOf(s);
+  MeasureNormaliser normaliser;
+  normaliser.sd[0] = 0.1;  // compactness alone decides the score
+  const ObjectnessModel model = ObjectnessModel::average(normaliser);
+  DiscoveryConfig config;
+  const std::vector<Hypothesis> ranked = rankObjects(s.mesh, candidates, model, config);
+  // The pair (on the table, best score) first; the floating box, which shares no vertex with
+  // it, second: an object. The two boxes of the pair are alternatives.
+  ASSERT_GE(ranked.size(), 2u);
+  EXPECT_EQ(ranked[0].object_rank, 1u);
+  EXPECT_EQ(ranked[0].segment.vertices, candidates.segments[3].vertices);
+  EXPECT_EQ(ranked[0].context.footing, Footing::kSupport);
+  EXPECT_EQ(ranked[1].object_rank, 2u);
+  EXPECT_EQ(ranked[1].segment.vertices, s.boxes[2].vertices);
+  std::set<std::int32_t> seen;
+  std::size_t objects = 0;
+  for (const Hypothesis& h : ranked) {
+    if (h.object_rank == 0) continue;
+    ++objects;
+    for (std::int32_t v : h.segment.vertices) EXPECT_TRUE(seen.insert(v).second) << v;
+  }
+  EXPECT_EQ(objects, 2u);
+  // The alternatives follow, by score: the two boxes of the pair (suppression keeps them: each
+  // overlaps the pair by less than IoU 0.7).
+  ASSERT_EQ(ranked.size(), 4u);
+  EXPECT_EQ(ranked[2].object_rank, 0u);
+  EXPECT_EQ(ranked[3].object_rank, 0u);
+  // The object score weighs the score by the evidence: n / (n + 100) of it, plus 0.1 ln(share).
+  const double n = static_cast<double>(s.boxes[2].vertices.size());
+  EXPECT_NEAR(ranked[1].object_score,
+              ranked[1].score * n / (n + 100) + 0.1 * std::log(ranked[1].context.share_of_region),
+              1e-9);
+}
+
+TEST(ObjectSet, AStandingBoxOutranksAFloatingOneThatScoresBetter) {
+  const Scene s = tableWithBoxes();
+  SceneCandidates candidates = candidatesOf(s);
+  candidates.segments.resize(3);
+  candidates.measures.resize(3);
+  candidates.context.resize(3);
+  candidates.measures[2].compactness = 0.9;  // the floating box looks best
+  MeasureNormaliser normaliser;
+  normaliser.sd[0] = 0.1;
+  const ObjectnessModel model = ObjectnessModel::average(normaliser);
+  DiscoveryConfig config;
+  const std::vector<Hypothesis> ranked = rankObjects(s.mesh, candidates, model, config);
+  ASSERT_EQ(ranked.size(), 3u);
+  EXPECT_EQ(ranked[0].segment.vertices, s.boxes[0].vertices);  // on the table
+  EXPECT_EQ(ranked[1].segment.vertices, s.boxes[1].vertices);  // on the box
+  EXPECT_EQ(ranked[2].segment.vertices, s.boxes[2].vertices);  // in the air
+  // Off, the paper's list: by score alone.
+  config.objects.enabled = false;
+  const std::vector<Hypothesis> paper = rankObjects(s.mesh, candidates, model, config);
+  EXPECT_EQ(paper[0].segment.vertices, s.boxes[2].vertices);
+  EXPECT_EQ(paper[0].object_rank, 0u);
+  EXPECT_TRUE(std::isnan(paper[0].object_score));
+}
+
+TEST(ObjectSet, ACandidateAllTakenIsLeftOutAndOneBarelyTakenLosesTheTakenVertices) {
+  const Scene s = tableWithBoxes();
+  SceneCandidates candidates;
+  // B: the standing box plus two vertices of the floating box, scoring best; then the standing
+  // box itself and the floating box, 2 of whose 600 vertices B holds.
+  const Segment& standing = s.boxes[0];
+  const Segment& floating = s.boxes[2];
+  std::vector<std::int32_t> b = standing.vertices;
+  b.push_back(floating.vertices[0]);
+  b.push_back(floating.vertices[1]);
+  std::sort(b.begin(), b.end());
+  candidates.segments = {describeSegment(s.mesh, b), standing, floating};
+  ShapeMeasures m;
+  m.compactness = 0.5;
+  candidates.measures.assign(3, m);
+  candidates.measures[0].compactness = 0.9;
+  candidates.context.assign(3, SegmentContext{});
+  candidates.effective.evidence_vertices = 100;
+  MeasureNormaliser normaliser;
+  normaliser.sd[0] = 0.1;
+  DiscoveryConfig config;
+  const std::vector<Hypothesis> ranked =
+      rankObjects(s.mesh, candidates, ObjectnessModel::average(normaliser), config);
+  // The floating box joins without the two vertices B holds; the standing box, all B's, is no
+  // object, and suppression drops it too (IoU with B above 0.7).
+  ASSERT_EQ(ranked.size(), 2u);
+  EXPECT_EQ(ranked[0].segment.vertices, b);
+  EXPECT_EQ(ranked[1].object_rank, 2u);
+  EXPECT_EQ(ranked[1].segment.vertices.size(), floating.vertices.size() - 2);
+  for (std::int32_t v : ranked[1].segment.vertices) {
+    EXPECT_FALSE(std::binary_search(b.begin(), b.end(), v));
+  }
+}
+
+}  // namespace
+}  // namespace objscan::discovery
