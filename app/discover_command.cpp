@@ -60,6 +60,7 @@ void printDiscoverSummary(const DiscoverCommandOptions& options,
     const char* footing = h.object_rank == 0                                  ? ""
                           : h.context.footing == discovery::Footing::kSupport  ? "  on a support"
                           : h.context.footing == discovery::Footing::kOnObject ? "  on a surface"
+                          : h.context.footing == discovery::Footing::kPatch    ? "  a patch of a support"
                                                                                : "  floating";
     std::printf("  #%-3zu score %+.3f  %5zu vertices  %.0f x %.0f x %.0f mm%s%s%s\n", i + 1,
                 h.score, h.segment.vertices.size(), 1e3 * h.segment.extents[0],

@@ -55,6 +55,9 @@ constexpr float kUpFacingDeg = 25.0f;
 /// ... and holds a candidate up when at least this many of its vertices lie under the foot.
 constexpr std::size_t kMinSurfaceUnder = 5;
 
+/// The support's noise is measured over its vertices this close to a candidate's foot.
+constexpr float kNoiseRadiusM = 0.05f;
+
 /// What the first pass finds of one candidate.
 struct Lowest {
   int plane = -1;        ///< the plane it is measured against (under it), -1 without one
@@ -70,28 +73,22 @@ const char* toString(Footing footing) {
       return "support";
     case Footing::kOnObject:
       return "object";
+    case Footing::kPatch:
+      return "patch";
     case Footing::kNone:
       break;
   }
   return "none";
 }
 
-int footingTier(Footing footing) {
-  switch (footing) {
-    case Footing::kSupport:
-      return 0;
-    case Footing::kOnObject:
-      return 1;
-    case Footing::kNone:
-      break;
-  }
-  return 2;
-}
-
 void ContextConfig::validate() const {
   if (!(gap_m >= 0.0f) || !std::isfinite(gap_m) || !(gap_edges >= 0.0f) ||
       !std::isfinite(gap_edges)) {
     throw std::invalid_argument("the context's gap must be a finite number >= 0");
+  }
+  if (!(min_rise_noises >= 0.0) || !std::isfinite(min_rise_noises) || !(min_rise_m >= 0.0) ||
+      !std::isfinite(min_rise_m)) {
+    throw std::invalid_argument("the context's least rise must be a finite number >= 0");
   }
   if (!(below_m >= 0.0f) || !std::isfinite(below_m)) {
     throw std::invalid_argument("the context's depth below a support must be a finite number >= 0");
@@ -208,8 +205,8 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
         // Its foot: vertices within the gap of the plane (at most 64, spread evenly); it stands
         // when one of them has the support's surface near (the support, not a hole's floor).
         bool on = false;
+        std::vector<std::int32_t> foot;
         if (min_height <= gap && !support_points.empty()) {
-          std::vector<std::int32_t> foot;
           for (std::int32_t v : s.vertices) {
             if (planes[k].height(mesh.positions[static_cast<std::size_t>(v)]) <= gap) {
               foot.push_back(v);
@@ -225,6 +222,32 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
         if (on) {
           c.footing = Footing::kSupport;
           low = {static_cast<int>(k), min_height, at};
+          // How far it rises over the support, against the support's own noise around its foot
+          // (the RMS height of the support's vertices within kNoiseRadiusM of a few foot
+          // vertices): a patch of a noisy table cut off by the support's 1 cm band rises no more
+          // than the table's noise.
+          float rise = 0.0f;
+          for (std::int32_t v : s.vertices) {
+            rise = std::max(rise, planes[k].height(mesh.positions[static_cast<std::size_t>(v)]));
+          }
+          double sum_sq = 0.0;
+          std::size_t count_sq = 0;
+          const std::size_t every = std::max<std::size_t>(1, (foot.size() + 7) / 8);
+          for (std::size_t f = 0; f < foot.size(); f += every) {
+            support_index.within(mesh.positions[static_cast<std::size_t>(foot[f])], kNoiseRadiusM,
+                                 &found);
+            for (const auto& [point, distance_sq] : found) {
+              const double h = planes[k].height(support_points[point]);
+              sum_sq += h * h;
+              ++count_sq;
+            }
+          }
+          c.rise_m = rise;
+          c.support_noise_m = count_sq ? std::sqrt(sum_sq / static_cast<double>(count_sq)) : 0.0;
+          if (rise < std::max<double>(config.min_rise_m,
+                                      config.min_rise_noises * c.support_noise_m)) {
+            c.footing = Footing::kPatch;
+          }
           break;
         }
         if (low.plane < 0 || min_height < low.height) {
@@ -242,7 +265,9 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
   // a candidate's own lowest plane may be the wall it leans on.
   std::vector<std::size_t> standing(planes.size(), 0);
   for (std::size_t i = 0; i < segments.size(); ++i) {
-    if (out[i].footing == Footing::kSupport) ++standing[static_cast<std::size_t>(lowest[i].plane)];
+    if (out[i].footing == Footing::kSupport || out[i].footing == Footing::kPatch) {
+      ++standing[static_cast<std::size_t>(lowest[i].plane)];
+    }
   }
   if (planes.empty() || *std::max_element(standing.begin(), standing.end()) == 0) return out;
   const UpPlane& plane =
@@ -256,7 +281,7 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
     std::vector<std::int32_t> under;
     for (std::size_t i = range.begin(); i < range.end(); ++i) {
       SegmentContext& c = out[i];
-      if (c.footing != Footing::kNone) continue;
+      if (c.footing != Footing::kNone || lowest[i].plane < 0) continue;
       const Segment& s = segments[i];
       float lowest_height = std::numeric_limits<float>::infinity();
       for (std::int32_t v : s.vertices) {

@@ -135,8 +135,11 @@ void DiscoveryConfig::validate() const {
 
 void ObjectSetConfig::validate() const {
   context.validate();
-  if (!(region_share_weight >= 0.0) || !std::isfinite(region_share_weight)) {
-    throw std::invalid_argument("the object set's region_share_weight must be a number >= 0");
+  for (const double w : {region_share_weight, on_surface_penalty, floating_penalty}) {
+    if (!(w >= 0.0) || !std::isfinite(w)) {
+      throw std::invalid_argument(
+          "the object set's region share weight and footing penalties must be numbers >= 0");
+    }
   }
   if (!(max_taken_share >= 0.0 && max_taken_share < 1.0)) {
     throw std::invalid_argument("the object set's max_taken_share must be in [0, 1)");
@@ -337,19 +340,21 @@ std::vector<Hypothesis> rankObjects(const TriangleMesh& mesh, const SceneCandida
   std::vector<double> object_scores(n);
   for (std::size_t i = 0; i < n; ++i) {
     const double count = static_cast<double>(candidates.segments[i].vertices.size());
-    object_scores[i] =
-        scores[i] * count / (count + evidence) +
-        config.objects.region_share_weight *
-            std::log(std::max(candidates.context[i].share_of_region, kMinRegionShare));
+    const double f = evidence > 0.0 ? count / (count + evidence) : 1.0;
+    const SegmentContext& c = candidates.context[i];
+    // A patch of a support stands on nothing of its own: it pays what a floating one does.
+    const double penalty = c.footing == Footing::kSupport    ? 0.0
+                           : c.footing == Footing::kOnObject ? config.objects.on_surface_penalty
+                                                             : config.objects.floating_penalty;
+    object_scores[i] = (scores[i] >= 0.0 ? scores[i] * f : scores[i] / f) +
+                       config.objects.region_share_weight *
+                           std::log(std::max(c.share_of_region, kMinRegionShare)) -
+                       penalty;
   }
-  // Those on a support first, then those on another candidate, then those that float; each
-  // group by object score; ties keep the candidates' order.
+  // By object score; ties keep the candidates' order.
   std::vector<std::size_t> order(n);
   std::iota(order.begin(), order.end(), std::size_t{0});
   std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-    const int ta = footingTier(candidates.context[a].footing);
-    const int tb = footingTier(candidates.context[b].footing);
-    if (ta != tb) return ta < tb;
     return object_scores[a] > object_scores[b];
   });
   std::vector<std::uint8_t> taken(mesh.positions.size(), 0);

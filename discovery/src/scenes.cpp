@@ -255,12 +255,11 @@ void rankAll(SceneDiscovery& run, const ObjectnessModel& scorer, const Discovery
     }
     watch.stop(&t.suppress_ms, &t.suppress_cpu_ms);
   }
-  // Every scene's objects before any alternative; objects by footing (footingTier), then by
-  // object score; the alternatives by score. Within a scene that is rankObjects' order.
+  // Every scene's objects before any alternative; objects by object score, the alternatives by
+  // score. Within a scene that is rankObjects' order.
   const auto key = [](const Hypothesis& h) {
     const bool object = h.object_rank > 0;
-    return std::tuple(object ? 0 : 1, object ? footingTier(h.context.footing) : 0,
-                      object ? -h.object_score : -h.score);
+    return std::pair(object ? 0 : 1, object ? -h.object_score : -h.score);
   };
   std::stable_sort(run.ranked.begin(), run.ranked.end(),
                    [&](const RankedHypothesis& a, const RankedHypothesis& b) {

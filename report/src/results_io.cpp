@@ -259,6 +259,8 @@ Hypotheses hypothesesFrom(const discovery::SceneDiscovery& run, const std::strin
     r.height_m = known(h.context.height_m);
     r.share_of_region = h.context.share_of_region;
     r.observation = known(h.context.observation);
+    r.rise_m = known(h.context.rise_m);
+    r.support_noise_m = known(h.context.support_noise_m);
     out.hypotheses.push_back(std::move(r));
   }
   return out;
@@ -348,6 +350,8 @@ void writeHypotheses(const fs::path& file, const Hypotheses& hyp) {
       c["height_m"] = h.height_m ? Json(*h.height_m) : Json(nullptr);
       if (h.share_of_region) c["share_of_region"] = *h.share_of_region;
       c["observation"] = h.observation ? Json(*h.observation) : Json(nullptr);
+      c["rise_m"] = h.rise_m ? Json(*h.rise_m) : Json(nullptr);
+      c["support_noise_m"] = h.support_noise_m ? Json(*h.support_noise_m) : Json(nullptr);
       j["context"] = c;
     }
     if (h.box) {
@@ -437,6 +441,8 @@ Hypotheses readHypotheses(const fs::path& file) {
       r.height_m = c->number("height_m");
       r.share_of_region = c->number("share_of_region");
       r.observation = c->number("observation");
+      r.rise_m = c->number("rise_m");
+      r.support_noise_m = c->number("support_noise_m");
     }
     out.hypotheses.push_back(std::move(r));
   }

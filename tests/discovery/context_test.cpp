@@ -188,35 +188,64 @@ TEST(ObjectSet, StandingCandidatesComeFirstAndNoTwoObjectsShareAVertex) {
   ASSERT_EQ(ranked.size(), 4u);
   EXPECT_EQ(ranked[2].object_rank, 0u);
   EXPECT_EQ(ranked[3].object_rank, 0u);
-  // The object score weighs the score by the evidence: n / (n + 100) of it, plus 0.1 ln(share).
+  // The object score weighs the (positive) score by the evidence, n / (n + 100) of it, adds
+  // 0.1 ln(share of its region) and takes 0.6 from a floating candidate.
   const double n = static_cast<double>(s.boxes[2].vertices.size());
+  EXPECT_GT(ranked[1].score, 0.0);
   EXPECT_NEAR(ranked[1].object_score,
-              ranked[1].score * n / (n + 100) + 0.1 * std::log(ranked[1].context.share_of_region),
+              ranked[1].score * n / (n + 100) +
+                  0.1 * std::log(ranked[1].context.share_of_region) - 0.6,
               1e-9);
 }
 
-TEST(ObjectSet, AStandingBoxOutranksAFloatingOneThatScoresBetter) {
+TEST(ObjectSet, AStandingBoxOutranksAFloatingOneThatScoresALittleBetter) {
   const Scene s = tableWithBoxes();
   SceneCandidates candidates = candidatesOf(s);
   candidates.segments.resize(3);
   candidates.measures.resize(3);
   candidates.context.resize(3);
-  candidates.measures[2].compactness = 0.9;  // the floating box looks best
+  candidates.measures[2].compactness = 0.6;  // the floating box looks best
   MeasureNormaliser normaliser;
   normaliser.sd[0] = 0.1;
   const ObjectnessModel model = ObjectnessModel::average(normaliser);
   DiscoveryConfig config;
-  const std::vector<Hypothesis> ranked = rankObjects(s.mesh, candidates, model, config);
+  std::vector<Hypothesis> ranked = rankObjects(s.mesh, candidates, model, config);
   ASSERT_EQ(ranked.size(), 3u);
   EXPECT_EQ(ranked[0].segment.vertices, s.boxes[0].vertices);  // on the table
-  EXPECT_EQ(ranked[1].segment.vertices, s.boxes[1].vertices);  // on the box
-  EXPECT_EQ(ranked[2].segment.vertices, s.boxes[2].vertices);  // in the air
+  EXPECT_EQ(ranked[1].segment.vertices, s.boxes[1].vertices);  // on the box: 0.3 less
+  EXPECT_EQ(ranked[2].segment.vertices, s.boxes[2].vertices);  // in the air: 0.6 less
+  EXPECT_GT(ranked[2].score, ranked[0].score);
+  // A score better by more than the penalty still comes first.
+  candidates.measures[2].compactness = 1.5;
+  ranked = rankObjects(s.mesh, candidates, model, config);
+  EXPECT_EQ(ranked[0].segment.vertices, s.boxes[2].vertices);
   // Off, the paper's list: by score alone.
   config.objects.enabled = false;
   const std::vector<Hypothesis> paper = rankObjects(s.mesh, candidates, model, config);
   EXPECT_EQ(paper[0].segment.vertices, s.boxes[2].vertices);
   EXPECT_EQ(paper[0].object_rank, 0u);
   EXPECT_TRUE(std::isnan(paper[0].object_score));
+}
+
+TEST(ObjectSet, FewVerticesDrawAPositiveScoreDownAndANegativeOneFurtherDown) {
+  const Scene s = tableWithBoxes();
+  SceneCandidates candidates = candidatesOf(s);
+  candidates.segments.resize(1);
+  candidates.context.resize(1);
+  candidates.measures.resize(1);
+  MeasureNormaliser normaliser;
+  normaliser.sd[0] = 0.1;
+  DiscoveryConfig config;
+  const double n = static_cast<double>(s.boxes[0].vertices.size()), f = n / (n + 100);
+  for (const double compactness : {0.5, -0.5}) {
+    candidates.measures[0].compactness = compactness;
+    const std::vector<Hypothesis> ranked =
+        rankObjects(s.mesh, candidates, ObjectnessModel::average(normaliser), config);
+    ASSERT_EQ(ranked.size(), 1u);
+    const double score = ranked[0].score;
+    EXPECT_NEAR(ranked[0].object_score, (score > 0 ? score * f : score / f), 1e-9) << score;
+    EXPECT_LT(ranked[0].object_score, score);
+  }
 }
 
 TEST(ObjectSet, ACandidateAllTakenIsLeftOutAndOneBarelyTakenLosesTheTakenVertices) {

@@ -128,3 +128,33 @@ TEST(Evaluate, WritesCurvesTableAndPlot) {
 
 }  // namespace
 }  // namespace objscan::discovery
+
+namespace objscan::discovery {
+namespace {
+
+TEST(EvaluateRanking, RanksInIgnoredRegionsCountNeitherForNorAgainst) {
+  // Objects 1 (vertices 0-3) and 2 (4-7); 8-11 background; 12-15 ignored (a plant).
+  std::vector<std::int32_t> labels(16, 0);
+  for (int v = 0; v < 8; ++v) labels[static_cast<std::size_t>(v)] = v < 4 ? 1 : 2;
+  std::vector<std::uint8_t> ignore(16, 0);
+  for (int v = 12; v < 16; ++v) ignore[static_cast<std::size_t>(v)] = 1;
+  const GroundTruthObjects truth(labels, ignore);
+  // The plant, object 1, the background, object 2.
+  const RankingEvaluation e =
+      evaluateRanking(truth, {{12, 13, 14}, {0, 1, 2, 3}, {8, 9, 10}, {4, 5, 6, 7}}, 0.5);
+  ASSERT_EQ(e.ranks.size(), 4u);
+  EXPECT_TRUE(e.ranks[0].ignored);
+  EXPECT_FALSE(e.ranks[0].found);
+  EXPECT_FALSE(e.ranks[1].ignored);
+  EXPECT_TRUE(e.ranks[1].found);
+  EXPECT_DOUBLE_EQ(e.ranks[1].precision, 1.0);  // the plant is not a rank
+  EXPECT_DOUBLE_EQ(e.ranks[3].precision, 2.0 / 3.0);
+  EXPECT_EQ(e.found, 2u);
+  // AP: (1/1 + 2/3) / 2, as if the plant were not listed.
+  EXPECT_NEAR(e.ap, (1.0 + 2.0 / 3.0) / 2.0, 1e-12);
+  const RankingEvaluation without = evaluateRanking(truth, {{0, 1, 2, 3}, {8, 9, 10}, {4, 5, 6, 7}}, 0.5);
+  EXPECT_DOUBLE_EQ(without.ap, e.ap);
+}
+
+}  // namespace
+}  // namespace objscan::discovery

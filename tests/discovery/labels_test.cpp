@@ -52,6 +52,46 @@ TEST(TransferLabels, NeedsLabelledTriangles) {
   EXPECT_THROW(transferLabels(fused, truth), std::invalid_argument);
 }
 
+TEST(TransferVertexLabels, EachVertexTakesTheNearestLabelledVertexWithinOneAndAHalfCentimetres) {
+  // A hand-labelled fusion: three vertices, the last one ignored (a plant, say).
+  TriangleMesh labelled;
+  labelled.positions = {{0, 0, 0}, {0.1f, 0, 0}, {0.2f, 0, 0}};
+  labelled.labels = {0, 10, 20};
+  labelled.ignore = {0, 0, 1};
+  TriangleMesh other;
+  other.positions = {
+      {0.005f, 0, 0},          // 5 mm from the background vertex
+      {0.1f, 0.014f, 0},       // 14 mm from object 10
+      {0.21f, 0, 0},           // 1 cm from the ignored vertex: ignored too
+      {0.1f, 0.016f, 0},       // 16 mm from object 10: too far, so ignored
+  };
+  const LabelTransfer t = transferVertexLabels(other, labelled);
+  EXPECT_EQ(t.labels, (std::vector<std::int32_t>{0, 10, 20, 0}));
+  EXPECT_EQ(t.ignore, (std::vector<std::uint8_t>{0, 0, 1, 1}));
+  labelled.labels.clear();
+  EXPECT_THROW(transferVertexLabels(other, labelled), std::invalid_argument);
+}
+
+TEST(GroundTruthObjects, IgnoredVerticesCountInNoObjectAndNoHypothesis) {
+  // Vertices 0-9: object 1, of which 8 and 9 ignored (the band where it meets the table);
+  // 10-19: background, of which 15-19 ignored (a plant).
+  std::vector<std::int32_t> labels(20, 0);
+  for (int v = 0; v < 10; ++v) labels[v] = 1;
+  std::vector<std::uint8_t> ignore(20, 0);
+  for (int v : {8, 9, 15, 16, 17, 18, 19}) ignore[static_cast<std::size_t>(v)] = 1;
+  const GroundTruthObjects truth(labels, ignore);
+  EXPECT_EQ(truth.objectSize(1), 8u);
+  // Object 1 with its ignored band and the plant: IoU 8 / 8.
+  const ObjectMatch a = truth.bestMatch({0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 15, 16});
+  EXPECT_EQ(a.object_id, 1);
+  EXPECT_DOUBLE_EQ(a.iou, 1.0);
+  // Half the object and two counted background vertices: 4 / (6 + 8 - 4).
+  EXPECT_DOUBLE_EQ(truth.bestMatch({0, 1, 2, 3, 10, 11}).iou, 0.4);
+  EXPECT_DOUBLE_EQ(truth.ignoredShare({15, 16, 17, 10}), 0.75);
+  EXPECT_DOUBLE_EQ(GroundTruthObjects(labels).ignoredShare({15, 16}), 0.0);
+  EXPECT_THROW(GroundTruthObjects(labels, std::vector<std::uint8_t>(3, 0)), std::invalid_argument);
+}
+
 TEST(GroundTruthObjects, BestMatchIsTheObjectWithTheHighestVertexIoU) {
   // Vertices 0-9: object 1; 10-13: object 2; 14-19: none.
   std::vector<std::int32_t> labels(20, 0);

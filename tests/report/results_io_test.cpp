@@ -71,6 +71,58 @@ Hypotheses sampleHypotheses() {
   return h;
 }
 
+TEST(ResultsIo, TheObjectSetAndEachHypothesisContextReadBackAsWritten) {
+  TempDir dir;
+  Hypotheses written = sampleHypotheses();
+  written.hypotheses[0].object_rank = 1;
+  written.hypotheses[0].object_score = 0.75;
+  written.hypotheses[0].footing = "support";
+  written.hypotheses[0].height_m = 0.002;
+  written.hypotheses[0].share_of_region = 1.0;
+  written.hypotheses[0].observation = 1.5;
+  written.hypotheses[0].rise_m = 0.09;
+  written.hypotheses[0].support_noise_m = 0.002;
+  written.hypotheses[1].object_rank = 0;  // an alternative
+  written.hypotheses[1].object_score = -0.25;
+  written.hypotheses[1].footing = "none";
+  written.hypotheses[1].share_of_region = 0.125;  // height and observation unknown
+  writeHypotheses(dir / "hypotheses.json", written);
+  const nlohmann::json doc = parse(dir / "hypotheses.json");
+  EXPECT_TRUE(doc["hypotheses"][0]["object_set"].get<bool>());
+  EXPECT_EQ(doc["hypotheses"][0]["object_rank"].get<int>(), 1);
+  EXPECT_FALSE(doc["hypotheses"][1]["object_set"].get<bool>());
+  EXPECT_FALSE(doc["hypotheses"][1].contains("object_rank"));
+  EXPECT_EQ(keysOf(doc["hypotheses"][1]["context"]),
+            (std::set<std::string>{"footing", "height_m", "share_of_region", "observation",
+                                   "rise_m", "support_noise_m"}));
+  EXPECT_TRUE(doc["hypotheses"][1]["context"]["height_m"].is_null());
+  const Hypotheses read = readHypotheses(dir / "hypotheses.json");
+  for (std::size_t i = 0; i < 2; ++i) {
+    const HypothesisRecord &a = written.hypotheses[i], &b = read.hypotheses[i];
+    EXPECT_EQ(b.object_rank, a.object_rank);
+    EXPECT_EQ(b.object_score, a.object_score);
+    EXPECT_EQ(b.footing, a.footing);
+    EXPECT_EQ(b.height_m, a.height_m);
+    EXPECT_EQ(b.share_of_region, a.share_of_region);
+    EXPECT_EQ(b.observation, a.observation);
+    EXPECT_EQ(b.rise_m, a.rise_m);
+    EXPECT_EQ(b.support_noise_m, a.support_noise_m);
+  }
+  // A file from before the object set: no object rank, no context.
+  const Hypotheses old = readHypotheses([&] {
+    writeHypotheses(dir / "old.json", sampleHypotheses());
+    return dir / "old.json";
+  }());
+  EXPECT_FALSE(old.hypotheses[0].object_rank.has_value());
+  EXPECT_TRUE(old.hypotheses[0].footing.empty());
+  // An object without its rank is damaged.
+  nlohmann::json damaged = doc;
+  damaged["hypotheses"][0].erase("object_rank");
+  testing::writeBytes(dir / "damaged.json", damaged.dump());
+  testing::expectInputError([&] { readHypotheses(dir / "damaged.json"); }, dir / "damaged.json",
+                            "object_rank");
+}
+
 TEST(ResultsIo, HypothesesReadBackAsWrittenWithTheDocumentedKeys) {
   TempDir dir;
   const Hypotheses written = sampleHypotheses();
@@ -142,7 +194,7 @@ TEST(ResultsIo, TimingsEvaluationAndSettingsReadBackAsWritten) {
   e.objects = 2;
   e.found = 1;
   e.ap = 0.5;
-  e.ranks = {{1, 7, "mug", 0.8, true, 1.0, 0.5}, {2, 0, "", 0.0, false, 0.5, 0.5}};
+  e.ranks = {{1, 7, "mug", 0.8, true, false, 1.0, 0.5}, {2, 0, "", 0.0, false, true, 0.5, 0.5}};
   writeEvaluation(dir / "evaluation.json", e);
   EXPECT_EQ(keysOf(parse(dir / "evaluation.json")),
             (std::set<std::string>{"ground_truth", "objects", "min_iou", "found", "ap", "curve",
@@ -151,6 +203,8 @@ TEST(ResultsIo, TimingsEvaluationAndSettingsReadBackAsWritten) {
   ASSERT_EQ(re.ranks.size(), 2u);
   EXPECT_EQ(re.ranks[0].object, "mug");
   EXPECT_TRUE(re.ranks[0].found);
+  EXPECT_FALSE(re.ranks[0].ignored);
+  EXPECT_TRUE(re.ranks[1].ignored);
   EXPECT_EQ(re.ranks[1].precision, 0.5);
   EXPECT_EQ(re.ap, 0.5);
 

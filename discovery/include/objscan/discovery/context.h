@@ -22,13 +22,12 @@ enum class Footing : std::uint8_t {
   /// its lowest part rests on another surface facing up: an object under it (a stack), or a
   /// shelf board too small to be a support
   kOnObject,
+  /// it lies on a support but rises no more than the support's noise: a patch of the table
+  kPatch,
 };
-/// "none", "support", "object".
+/// "none", "support", "object", "patch".
 const char* toString(Footing footing);
-/// The object set's order of footings: 0 on a support, 1 on another candidate, 2 none. Standing
-/// on a support is the strongest evidence of a whole object; a fragment of a plant or of a
-/// monitor can rest on the rest of it.
-int footingTier(Footing footing);
+
 
 struct ContextConfig {
   /// A candidate stands on a support when its lowest vertex lies at most this far above the
@@ -39,6 +38,12 @@ struct ContextConfig {
   float gap_edges = 3.0f;
   /// ... and lies no further than this below it (noise, and a fold rounded into the support).
   float below_m = 0.02f;
+  /// A candidate on a support must rise over its plane by this many times the support's noise
+  /// around its foot (SegmentContext::support_noise_m), and by min_rise_m (the hard filter's
+  /// least thickness, SegmentFilter::min_thickness_m, measured from the support), or it is a
+  /// patch of the support.
+  double min_rise_noises = 3.0;
+  double min_rise_m = 0.01;
 
   /// Throws std::invalid_argument naming the first bad field.
   void validate() const;
@@ -60,6 +65,10 @@ struct SegmentContext {
   /// Mean length of its mesh edges, metres: its noise scale (a fused mesh's voxel, a single
   /// view's pixel footprint at its depth).
   double mean_edge_m = 0.0;
+  /// For one on a support (kSupport, kPatch): its highest vertex over the support's plane, and
+  /// the RMS height over that plane of the support's vertices near its foot; NaN otherwise.
+  double rise_m = std::numeric_limits<double>::quiet_NaN();
+  double support_noise_m = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// The context of each of `segments` in `mesh` (whose graph is `graph`, cut at the supports or

@@ -23,25 +23,30 @@
 namespace objscan::discovery {
 
 /// The object set: objscan's answer to "which objects are on this desk", beside the paper's ranked
-/// list of overlapping hypotheses. Candidates are taken greedily, those that stand on something
-/// (a support, or an object that does: SegmentContext::footing) before those that float, each
-/// group by its object score, and one joins when at most max_taken_share of its vertices belong
-/// to one taken before (those few are then left out of it): every surface region belongs to at
-/// most one object. The other hypotheses (non-maximum suppression at max_iou, as the paper's)
-/// follow as alternatives. docs/discovery.md, "Object set", says why and what it was tuned on.
+/// list of overlapping hypotheses. Every candidate gets an object score (its score weighed by its
+/// evidence, its share of its region and how it stands: SegmentContext), and candidates are
+/// taken greedily by it: one joins when at most max_taken_share of its vertices belong to one
+/// taken before (those few are then left out of it), so every surface region belongs to at most
+/// one object. The other hypotheses (non-maximum suppression at max_iou, as the paper's) follow
+/// as alternatives. docs/discovery.md, "Object set", says why and what it was chosen on.
 struct ObjectSetConfig {
   bool enabled = true;
   ContextConfig context;
-  /// A candidate's object score is its score times n / (n + evidence_vertices), n its vertex
-  /// count: the measures of a blob of a few dozen vertices, a few noise lengths across, say
-  /// little, so its score is drawn towards the mean's 0. Vertices at the reference density
-  /// (scaled as min_size is).
+  /// Evidence: with f = n / (n + evidence_vertices), n its vertex count, a positive score is
+  /// multiplied by f and a negative one divided by it: the measures of a blob of a few dozen
+  /// vertices, a few noise lengths across, say little, so it ranks lower either way. Vertices at
+  /// the reference density (scaled as min_size is).
   std::size_t evidence_vertices = 100;
-  /// ... plus this weight times ln(share of its region) (SegmentContext::share_of_region, at
-  /// least 0.001): a fragment of something larger (a leaf of a plant, the base of a lamp) scores
-  /// lower than a whole thing standing alone (with weight 0.1: -0.23 for a tenth of its region,
-  /// -0.46 for a hundredth).
+  /// Plus this weight times ln(share of its region) (SegmentContext::share_of_region, at least
+  /// 0.001): a fragment of something larger (a leaf of a plant, the base of a lamp) scores lower
+  /// than a whole thing standing alone (with weight 0.1: -0.23 for a tenth of its region, -0.46
+  /// for a hundredth).
   double region_share_weight = 0.1;
+  /// Less these, in the score's units, for a candidate that stands on another surface rather
+  /// than a support (Footing::kOnObject), and for one that stands on nothing or is a patch of a
+  /// support (Footing::kNone, kPatch).
+  double on_surface_penalty = 0.3;
+  double floating_penalty = 0.6;
   double max_taken_share = 0.1;
   /// Throws std::invalid_argument naming the first bad field.
   void validate() const;

@@ -46,11 +46,12 @@ struct HypothesisRecord {
   /// overlap); 0 for an alternative; nothing in a file from before the object set.
   std::optional<std::size_t> object_rank;
   std::optional<double> object_score;  ///< the score weighed by its evidence
-  /// Its context (discovery::SegmentContext): how it stands ("support", "object" or "none";
-  /// empty when unknown), the height of its lowest point over the support plane under it, its
-  /// share of its region off the supports, how well fusion saw it.
+  /// Its context (discovery::SegmentContext): how it stands ("support", "object", "patch" or
+  /// "none"; empty when unknown), the height of its lowest point over the support plane under
+  /// it, its share of its region off the supports, how well fusion saw it, and for one on a
+  /// support how far it rises over it and the support's noise there.
   std::string footing;
-  std::optional<double> height_m, share_of_region, observation;
+  std::optional<double> height_m, share_of_region, observation, rise_m, support_noise_m;
 };
 
 /// Where discovery spent its time on one scene, milliseconds.
