@@ -59,11 +59,14 @@ void printDiscoverSummary(const DiscoverCommandOptions& options,
     const discovery::Hypothesis& h = run.ranked[i].hypothesis;
     const char* footing = h.object_rank == 0                                  ? ""
                           : h.context.footing == discovery::Footing::kSupport  ? "  on a support"
-                          : h.context.footing == discovery::Footing::kOnObject ? "  on a surface"
-                          : h.context.footing == discovery::Footing::kPatch    ? "  a patch of a support"
+                          : h.context.footing == discovery::Footing::kOnSurface ? "  on a surface"
+                          : h.context.footing == discovery::Footing::kPatch ? "  a support's patch"
                                                                                : "  floating";
-    std::printf("  #%-3zu score %+.3f  %5zu vertices  %.0f x %.0f x %.0f mm%s%s%s\n", i + 1,
-                h.score, h.segment.vertices.size(), 1e3 * h.segment.extents[0],
+    // An object is ranked by its object score, an alternative by its score.
+    const bool object = h.object_rank > 0;
+    std::printf("  #%-3zu %s %+.3f  %5zu vertices  %.0f x %.0f x %.0f mm%s%s%s\n", i + 1,
+                object ? "object score" : "score", object ? h.object_score : h.score,
+                h.segment.vertices.size(), 1e3 * h.segment.extents[0],
                 1e3 * h.segment.extents[1], 1e3 * h.segment.extents[2], footing,
                 many ? "  " : "", many ? run.scenes[run.ranked[i].scene].name.c_str() : "");
   }

@@ -184,7 +184,7 @@ void make(const fs::path& out) {
   evaluation.ground_truth = "scene_gt.ply";
   evaluation.objects = 2;
   evaluation.found = 1;
-  evaluation.ranks = {{1, 1, "mug", 0.8, true, 1.0, 0.5}};
+  evaluation.ranks = {{1, 1, "mug", 0.8, true, false, 1.0, 0.5}};
   report::writeEvaluation(scratch / "evaluation.json", evaluation);
   writeSelected(results / "seed3", 3, scratch / "evaluation.json");
   std::ofstream(results / "seed4", std::ios::binary)

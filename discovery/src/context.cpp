@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
 #include <numeric>
 #include <stdexcept>
 #include <string>
@@ -26,13 +27,17 @@ struct UpPlane {
   float height(const Eigen::Vector3f& p) const { return up.dot(p) + offset; }
 };
 
+/// A support vertex belongs to a plane's own surface (for its orientation) within this distance
+/// of it: twice the supports' band (SupportConfig::distance_m).
+constexpr float kOwnSurfaceM = 0.02f;
+
 std::vector<UpPlane> orientedPlanes(const TriangleMesh& mesh, const Supports& supports) {
   std::vector<UpPlane> planes;
   for (const SupportPlane& p : supports.planes) {
     double facing = 0.0;
     for (std::size_t v = 0; v < mesh.positions.size(); ++v) {
       if (!supports.on_support[v]) continue;
-      if (std::abs(p.normal.dot(mesh.positions[v]) + p.offset) > 0.02f) continue;
+      if (std::abs(p.normal.dot(mesh.positions[v]) + p.offset) > kOwnSurfaceM) continue;
       facing += p.normal.dot(mesh.normals[v]);
     }
     planes.push_back(facing >= 0.0 ? UpPlane{p.normal, p.offset} : UpPlane{-p.normal, -p.offset});
@@ -60,8 +65,8 @@ constexpr float kNoiseRadiusM = 0.05f;
 
 /// What the first pass finds of one candidate.
 struct Lowest {
-  int plane = -1;        ///< the plane it is measured against (under it), -1 without one
-  float height = 0.0f;   ///< its lowest vertex's height above that plane
+  int plane = -1;       ///< the plane it is measured against (under it), -1 without one
+  float height = 0.0f;  ///< its lowest vertex's height above that plane
   std::int32_t vertex = -1;
 };
 
@@ -71,8 +76,8 @@ const char* toString(Footing footing) {
   switch (footing) {
     case Footing::kSupport:
       return "support";
-    case Footing::kOnObject:
-      return "object";
+    case Footing::kOnSurface:
+      return "surface";
     case Footing::kPatch:
       return "patch";
     case Footing::kNone:
@@ -101,8 +106,10 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
                                             const ContextConfig& config) {
   config.validate();
   const std::size_t n = mesh.positions.size();
+  if (!mesh.hasNormals()) throw std::invalid_argument("segmentContexts needs the mesh's normals");
   if (supports.on_support.size() != n || graph.vertex_count != n) {
-    throw std::invalid_argument("segmentContexts needs one support flag per mesh vertex");
+    throw std::invalid_argument(
+        "segmentContexts needs a graph and one support flag per mesh vertex");
   }
   for (const Segment& s : segments) {
     if (s.vertices.empty() || s.vertices.front() < 0 ||
@@ -137,7 +144,8 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
                              .norm();
     for (std::int32_t v : {e.a, e.b}) {
       edge_sum[static_cast<std::size_t>(v)] += length;
-      if (edge_count[static_cast<std::size_t>(v)] < 0xffff) ++edge_count[static_cast<std::size_t>(v)];
+      if (edge_count[static_cast<std::size_t>(v)] < 0xffff)
+        ++edge_count[static_cast<std::size_t>(v)];
     }
   }
   // The scene's median vertex weight: a candidate's observation is its mean over this.
@@ -148,115 +156,125 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
     if (w[w.size() / 2] > 0.0f) median_weight = w[w.size() / 2];
   }
   std::vector<Eigen::Vector3f> support_points;
+  std::vector<std::size_t> support_vertex;
   for (std::size_t v = 0; v < n; ++v) {
-    if (supports.on_support[v]) support_points.push_back(mesh.positions[v]);
+    if (!supports.on_support[v]) continue;
+    support_points.push_back(mesh.positions[v]);
+    support_vertex.push_back(v);
   }
+  const float min_cos = std::cos(kUpFacingDeg * std::numbers::pi_v<float> / 180.0f);
   const PointIndex support_index(support_points);
 
   std::vector<SegmentContext> out(segments.size());
   std::vector<Lowest> lowest(segments.size());
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, segments.size()),
-                    [&](const tbb::blocked_range<std::size_t>& range) {
-    std::vector<std::pair<std::uint32_t, float>> found;
-    for (std::size_t i = range.begin(); i < range.end(); ++i) {
-      const Segment& s = segments[i];
-      SegmentContext& c = out[i];
-      double edges = 0.0, count = 0.0;
-      std::size_t in_region = 0;
-      std::int32_t own_region = -1;
-      for (std::int32_t v : s.vertices) {
-        edges += edge_sum[static_cast<std::size_t>(v)];
-        count += edge_count[static_cast<std::size_t>(v)];
-        if (own_region < 0 && !supports.on_support[static_cast<std::size_t>(v)]) {
-          own_region = region[static_cast<std::size_t>(v)];
-        }
-      }
-      c.mean_edge_m = count > 0.0 ? edges / count : 0.0;
-      if (std::isfinite(median_weight)) {
-        double weight = 0.0;
-        for (std::int32_t v : s.vertices) weight += mesh.weights[static_cast<std::size_t>(v)];
-        c.observation = weight / static_cast<double>(s.vertices.size()) / median_weight;
-      }
-      for (std::int32_t v : s.vertices) {
-        in_region += region[static_cast<std::size_t>(v)] == own_region &&
-                     !supports.on_support[static_cast<std::size_t>(v)];
-      }
-      if (own_region >= 0) {
-        c.share_of_region = static_cast<double>(in_region) /
-                            static_cast<double>(region_size[static_cast<std::size_t>(own_region)]);
-      }
-      const float gap =
-          std::max(config.gap_m, config.gap_edges * static_cast<float>(c.mean_edge_m));
-      // Against each plane: the lowest vertex; the candidate stands on the first plane whose
-      // support is right under that vertex, else it is measured against the nearest plane it
-      // lies above.
-      Lowest& low = lowest[i];
-      for (std::size_t k = 0; k < planes.size(); ++k) {
-        float min_height = std::numeric_limits<float>::infinity();
-        std::int32_t at = -1;
-        for (std::int32_t v : s.vertices) {
-          const float h = planes[k].height(mesh.positions[static_cast<std::size_t>(v)]);
-          if (h < min_height) {
-            min_height = h;
-            at = v;
-          }
-        }
-        if (min_height < -config.below_m) continue;  // through or under this plane
-        // Its foot: vertices within the gap of the plane (at most 64, spread evenly); it stands
-        // when one of them has the support's surface near (the support, not a hole's floor).
-        bool on = false;
-        std::vector<std::int32_t> foot;
-        if (min_height <= gap && !support_points.empty()) {
+  tbb::parallel_for(
+      tbb::blocked_range<std::size_t>(0, segments.size()),
+      [&](const tbb::blocked_range<std::size_t>& range) {
+        std::vector<std::pair<std::uint32_t, float>> found;
+        for (std::size_t i = range.begin(); i < range.end(); ++i) {
+          const Segment& s = segments[i];
+          SegmentContext& c = out[i];
+          double edges = 0.0, count = 0.0;
+          std::size_t in_region = 0;
+          std::int32_t own_region = -1;
           for (std::int32_t v : s.vertices) {
-            if (planes[k].height(mesh.positions[static_cast<std::size_t>(v)]) <= gap) {
-              foot.push_back(v);
+            edges += edge_sum[static_cast<std::size_t>(v)];
+            count += edge_count[static_cast<std::size_t>(v)];
+            if (own_region < 0 && !supports.on_support[static_cast<std::size_t>(v)]) {
+              own_region = region[static_cast<std::size_t>(v)];
             }
           }
-          const std::size_t stride = (foot.size() + 63) / 64;
-          for (std::size_t f = 0; !on && f < foot.size(); f += stride) {
-            support_index.within(mesh.positions[static_cast<std::size_t>(foot[f])],
-                                 gap + kSupportSearchM, &found);
-            on = !found.empty();
+          c.mean_edge_m = count > 0.0 ? edges / count : 0.0;
+          if (std::isfinite(median_weight)) {
+            double weight = 0.0;
+            for (std::int32_t v : s.vertices) weight += mesh.weights[static_cast<std::size_t>(v)];
+            c.observation = weight / static_cast<double>(s.vertices.size()) / median_weight;
           }
-        }
-        if (on) {
-          c.footing = Footing::kSupport;
-          low = {static_cast<int>(k), min_height, at};
-          // How far it rises over the support, against the support's own noise around its foot
-          // (the RMS height of the support's vertices within kNoiseRadiusM of a few foot
-          // vertices): a patch of a noisy table cut off by the support's 1 cm band rises no more
-          // than the table's noise.
-          float rise = 0.0f;
           for (std::int32_t v : s.vertices) {
-            rise = std::max(rise, planes[k].height(mesh.positions[static_cast<std::size_t>(v)]));
+            in_region += region[static_cast<std::size_t>(v)] == own_region &&
+                         !supports.on_support[static_cast<std::size_t>(v)];
           }
-          double sum_sq = 0.0;
-          std::size_t count_sq = 0;
-          const std::size_t every = std::max<std::size_t>(1, (foot.size() + 7) / 8);
-          for (std::size_t f = 0; f < foot.size(); f += every) {
-            support_index.within(mesh.positions[static_cast<std::size_t>(foot[f])], kNoiseRadiusM,
-                                 &found);
-            for (const auto& [point, distance_sq] : found) {
-              const double h = planes[k].height(support_points[point]);
-              sum_sq += h * h;
-              ++count_sq;
+          if (own_region >= 0) {
+            c.share_of_region =
+                static_cast<double>(in_region) /
+                static_cast<double>(region_size[static_cast<std::size_t>(own_region)]);
+          }
+          const float gap =
+              std::max(config.gap_m, config.gap_edges * static_cast<float>(c.mean_edge_m));
+          // Against each plane: the lowest vertex; the candidate stands on the first plane whose
+          // support is right under that vertex, else it is measured against the nearest plane it
+          // lies above.
+          Lowest& low = lowest[i];
+          for (std::size_t k = 0; k < planes.size(); ++k) {
+            float min_height = std::numeric_limits<float>::infinity();
+            std::int32_t at = -1;
+            for (std::int32_t v : s.vertices) {
+              const float h = planes[k].height(mesh.positions[static_cast<std::size_t>(v)]);
+              if (h < min_height) {
+                min_height = h;
+                at = v;
+              }
+            }
+            if (min_height < -config.below_m) continue;  // through or under this plane
+            // Its foot: vertices within the gap of the plane (at most 64, spread evenly); it stands
+            // when one of them has the support's surface near (the support, not a hole's floor).
+            bool on = false;
+            std::vector<std::int32_t> foot;
+            if (min_height <= gap && !support_points.empty()) {
+              for (std::int32_t v : s.vertices) {
+                if (planes[k].height(mesh.positions[static_cast<std::size_t>(v)]) <= gap) {
+                  foot.push_back(v);
+                }
+              }
+              const std::size_t stride = std::max<std::size_t>(1, (foot.size() + 63) / 64);
+              for (std::size_t f = 0; !on && f < foot.size(); f += stride) {
+                support_index.within(mesh.positions[static_cast<std::size_t>(foot[f])],
+                                     gap + kSupportSearchM, &found);
+                on = !found.empty();
+              }
+            }
+            if (on) {
+              c.footing = Footing::kSupport;
+              low = {static_cast<int>(k), min_height, at};
+              // How far it rises over the support, against the support's own noise around its foot
+              // (the RMS height of the support's vertices within kNoiseRadiusM of a few foot
+              // vertices): a patch of a noisy table cut off by the support's 1 cm band rises no
+              // more than the table's noise.
+              float rise = 0.0f;
+              for (std::int32_t v : s.vertices) {
+                rise =
+                    std::max(rise, planes[k].height(mesh.positions[static_cast<std::size_t>(v)]));
+              }
+              double sum_sq = 0.0;
+              std::size_t count_sq = 0;
+              const std::size_t every = std::max<std::size_t>(1, (foot.size() + 7) / 8);
+              for (std::size_t f = 0; f < foot.size(); f += every) {
+                support_index.within(mesh.positions[static_cast<std::size_t>(foot[f])],
+                                     kNoiseRadiusM, &found);
+                for (const auto& [point, distance_sq] : found) {
+                  // This plane's own surface: not a wall's beside it, whose heights are not noise.
+                  if (planes[k].up.dot(mesh.normals[support_vertex[point]]) < min_cos) continue;
+                  const double h = planes[k].height(support_points[point]);
+                  sum_sq += h * h;
+                  ++count_sq;
+                }
+              }
+              c.rise_m = rise;
+              c.support_noise_m =
+                  count_sq ? std::sqrt(sum_sq / static_cast<double>(count_sq)) : 0.0;
+              if (rise <
+                  std::max<double>(config.min_rise_m, config.min_rise_noises * c.support_noise_m)) {
+                c.footing = Footing::kPatch;
+              }
+              break;
+            }
+            if (low.plane < 0 || min_height < low.height) {
+              low = {static_cast<int>(k), min_height, at};
             }
           }
-          c.rise_m = rise;
-          c.support_noise_m = count_sq ? std::sqrt(sum_sq / static_cast<double>(count_sq)) : 0.0;
-          if (rise < std::max<double>(config.min_rise_m,
-                                      config.min_rise_noises * c.support_noise_m)) {
-            c.footing = Footing::kPatch;
-          }
-          break;
+          if (low.plane >= 0) c.height_m = low.height;
         }
-        if (low.plane < 0 || min_height < low.height) {
-          low = {static_cast<int>(k), min_height, at};
-        }
-      }
-      if (low.plane >= 0) c.height_m = low.height;
-    }
-  });
+      });
 
   // Stacks and boards too small to be supports: a candidate whose foot rests on a surface that
   // faces up (as its support's plane does), level with or under the foot and not its own, stands
@@ -270,52 +288,51 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
     }
   }
   if (planes.empty() || *std::max_element(standing.begin(), standing.end()) == 0) return out;
-  const UpPlane& plane =
-      planes[static_cast<std::size_t>(std::max_element(standing.begin(), standing.end()) -
-                                      standing.begin())];
+  const UpPlane& plane = planes[static_cast<std::size_t>(
+      std::max_element(standing.begin(), standing.end()) - standing.begin())];
   const PointIndex all_index(mesh.positions);
-  const float min_cos = std::cos(kUpFacingDeg * static_cast<float>(M_PI) / 180.0f);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, segments.size()),
-                    [&](const tbb::blocked_range<std::size_t>& range) {
-    std::vector<std::pair<std::uint32_t, float>> found;
-    std::vector<std::int32_t> under;
-    for (std::size_t i = range.begin(); i < range.end(); ++i) {
-      SegmentContext& c = out[i];
-      if (c.footing != Footing::kNone || lowest[i].plane < 0) continue;
-      const Segment& s = segments[i];
-      float lowest_height = std::numeric_limits<float>::infinity();
-      for (std::int32_t v : s.vertices) {
-        lowest_height =
-            std::min(lowest_height, plane.height(mesh.positions[static_cast<std::size_t>(v)]));
-      }
-      const float gap =
-          std::max(config.gap_m, config.gap_edges * static_cast<float>(c.mean_edge_m));
-      // Its foot: the vertices within the gap of its lowest, at most 64 of them spread evenly.
-      std::vector<std::int32_t> foot;
-      for (std::int32_t v : s.vertices) {
-        if (plane.height(mesh.positions[static_cast<std::size_t>(v)]) <= lowest_height + gap) {
-          foot.push_back(v);
+  tbb::parallel_for(
+      tbb::blocked_range<std::size_t>(0, segments.size()),
+      [&](const tbb::blocked_range<std::size_t>& range) {
+        std::vector<std::pair<std::uint32_t, float>> found;
+        std::vector<std::int32_t> under;
+        for (std::size_t i = range.begin(); i < range.end(); ++i) {
+          SegmentContext& c = out[i];
+          if (c.footing != Footing::kNone || lowest[i].plane < 0) continue;
+          const Segment& s = segments[i];
+          float lowest_height = std::numeric_limits<float>::infinity();
+          for (std::int32_t v : s.vertices) {
+            lowest_height =
+                std::min(lowest_height, plane.height(mesh.positions[static_cast<std::size_t>(v)]));
+          }
+          const float gap =
+              std::max(config.gap_m, config.gap_edges * static_cast<float>(c.mean_edge_m));
+          // Its foot: the vertices within the gap of its lowest, at most 64 of them spread evenly.
+          std::vector<std::int32_t> foot;
+          for (std::int32_t v : s.vertices) {
+            if (plane.height(mesh.positions[static_cast<std::size_t>(v)]) <= lowest_height + gap) {
+              foot.push_back(v);
+            }
+          }
+          const std::size_t stride = std::max<std::size_t>(1, (foot.size() + 63) / 64);
+          under.clear();
+          for (std::size_t f = 0; f < foot.size(); f += stride) {
+            const Eigen::Vector3f& p = mesh.positions[static_cast<std::size_t>(foot[f])];
+            const float foot_height = plane.height(p);
+            all_index.within(p, gap, &found);
+            for (const auto& [u, distance_sq] : found) {
+              const std::int32_t v = static_cast<std::int32_t>(u);
+              if (contains(s.vertices, v)) continue;
+              if (plane.up.dot(mesh.normals[u]) < min_cos) continue;
+              if (plane.height(mesh.positions[u]) > foot_height + 0.5f * gap) continue;
+              under.push_back(v);
+            }
+          }
+          std::sort(under.begin(), under.end());
+          under.erase(std::unique(under.begin(), under.end()), under.end());
+          if (under.size() >= kMinSurfaceUnder) c.footing = Footing::kOnSurface;
         }
-      }
-      const std::size_t stride = (foot.size() + 63) / 64;
-      under.clear();
-      for (std::size_t f = 0; f < foot.size(); f += stride) {
-        const Eigen::Vector3f& p = mesh.positions[static_cast<std::size_t>(foot[f])];
-        const float foot_height = plane.height(p);
-        all_index.within(p, gap, &found);
-        for (const auto& [u, distance_sq] : found) {
-          const std::int32_t v = static_cast<std::int32_t>(u);
-          if (contains(s.vertices, v)) continue;
-          if (plane.up.dot(mesh.normals[u]) < min_cos) continue;
-          if (plane.height(mesh.positions[u]) > foot_height + 0.5f * gap) continue;
-          under.push_back(v);
-        }
-      }
-      std::sort(under.begin(), under.end());
-      under.erase(std::unique(under.begin(), under.end()), under.end());
-      if (under.size() >= kMinSurfaceUnder) c.footing = Footing::kOnObject;
-    }
-  });
+      });
   return out;
 }
 

@@ -270,6 +270,10 @@ SceneCandidates findCandidates(const TriangleMesh& mesh, const DiscoveryConfig& 
 void addContext(const TriangleMesh& mesh, SceneCandidates& candidates,
                 const DiscoveryConfig& config) {
   config.validate();
+  if (!config.objects.enabled) {
+    candidates.context.assign(candidates.segments.size(), SegmentContext{});
+    return;
+  }
   const MeshGraph graph = buildMeshGraph(mesh);
   candidates.effective = effectiveScales(graph, mesh, config);
   Supports supports;
@@ -344,7 +348,7 @@ std::vector<Hypothesis> rankObjects(const TriangleMesh& mesh, const SceneCandida
     const SegmentContext& c = candidates.context[i];
     // A patch of a support stands on nothing of its own: it pays what a floating one does.
     const double penalty = c.footing == Footing::kSupport    ? 0.0
-                           : c.footing == Footing::kOnObject ? config.objects.on_surface_penalty
+                           : c.footing == Footing::kOnSurface ? config.objects.on_surface_penalty
                                                              : config.objects.floating_penalty;
     object_scores[i] = (scores[i] >= 0.0 ? scores[i] * f : scores[i] / f) +
                        config.objects.region_share_weight *
@@ -383,11 +387,22 @@ std::vector<Hypothesis> rankObjects(const TriangleMesh& mesh, const SceneCandida
                  object_scores[i], objects.size() + 1};
     objects.push_back(std::move(h));
   }
-  // The alternatives: what suppression keeps that is not an object already, by score.
+  // The alternatives: what suppression keeps that is neither an object nor, by suppression's own
+  // measure, a near copy of one (a candidate that outscores an object it overlaps at IoU above
+  // max_iou suppresses it, and would list it again), by score.
+  const std::size_t object_count = objects.size();
   for (std::size_t i : suppressOverlaps(candidates.segments, scores, config.max_iou)) {
     if (chosen[i]) continue;
-    objects.push_back({candidates.segments[i], candidates.measures[i], scores[i],
-                       candidates.context[i], object_scores[i], 0});
+    const Segment& s = candidates.segments[i];
+    bool copy = false;
+    for (std::size_t k = 0; k < object_count && !copy; ++k) {
+      const std::vector<std::int32_t>& o = objects[k].segment.vertices;
+      if (s.vertices.back() < o.front() || o.back() < s.vertices.front()) continue;
+      copy = vertexIoU(s.vertices, o) > config.max_iou;
+    }
+    if (copy) continue;
+    objects.push_back({s, candidates.measures[i], scores[i], candidates.context[i],
+                       object_scores[i], 0});
   }
   return objects;
 }

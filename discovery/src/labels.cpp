@@ -46,12 +46,15 @@ LabelTransfer transferVertexLabels(const TriangleMesh& mesh, const TriangleMesh&
   LabelTransfer out{std::vector<std::int32_t>(mesh.positions.size(), 0),
                     std::vector<std::uint8_t>(mesh.positions.size(), 1)};
   const float max_sq = max_distance_m * max_distance_m;
+  std::vector<std::uint8_t> matched(mesh.positions.size(), 0);
   tbb::parallel_for(std::size_t{0}, mesh.positions.size(), [&](std::size_t v) {
     const std::uint32_t nearest = index.nearest(mesh.positions[v]);
     if ((truth.positions[nearest] - mesh.positions[v]).squaredNorm() > max_sq) return;
+    matched[v] = 1;
     out.labels[v] = truth.labels[nearest];
     out.ignore[v] = truth.hasIgnore() ? truth.ignore[nearest] : 0;
   });
+  out.unmatched = static_cast<std::size_t>(std::count(matched.begin(), matched.end(), 0));
   return out;
 }
 

@@ -29,6 +29,13 @@ GroundTruthObjects truthFromMesh(const std::filesystem::path& truth_path,
   try {
     if (truth.hasIgnore()) {
       LabelTransfer transfer = transferVertexLabels(mesh, truth, kLabelledMeshDistanceM);
+      if (2 * transfer.unmatched > mesh.positions.size()) {
+        // Most of the mesh is not where the labels are: another world frame, or another scene.
+        log::warning(truth_path.string() + ": " + std::to_string(transfer.unmatched) + " of " +
+                     std::to_string(mesh.positions.size()) +
+                     " vertices have no labelled vertex within 1.5 cm and are not scored; is the "
+                     "mesh in the labels' frame?");
+      }
       return GroundTruthObjects(std::move(transfer.labels), std::move(transfer.ignore));
     }
     return GroundTruthObjects(transferLabels(mesh, truth));
@@ -249,7 +256,8 @@ void rankAll(SceneDiscovery& run, const ObjectnessModel& scorer, const Discovery
   for (std::size_t s = 0; s < run.scenes.size(); ++s) {
     DiscoveryTimings& t = run.scenes[s].candidates.timings;
     Stopwatch watch;
-    for (Hypothesis& h : rankObjects(run.scenes[s].mesh, run.scenes[s].candidates, scorer, config)) {
+    DiscoveredScene& scene = run.scenes[s];
+    for (Hypothesis& h : rankObjects(scene.mesh, scene.candidates, scorer, config)) {
       run.ranked.push_back({s, std::move(h)});
       ++run.scenes[s].hypotheses;
     }

@@ -64,7 +64,8 @@ TEST(CliRealData, EvalOnLabelledKinectScansFindsTheirObjects) {
 }
 
 /// The demo's desk (recordings/tum_fr2_desk.oni) against its hand-checked labels
-/// (tum_fr2_desk_50/objects/: nine objects; the plant, lamp, monitor and teddy ignored): the
+/// (tum_fr2_desk_50/objects/: nine objects; the plant, lamp, packaging box, monitor and teddy
+/// ignored): the
 /// labels move onto this fusion by the nearest labelled vertex within 1.5 cm, and each of the
 /// five hypotheses a user sees first is one of the nine objects, cut out at IoU 0.5 or better.
 /// Measured 2026-11-27: tape, front can, mouse, mug and keyboard at IoU 0.98 to 1.0, then the

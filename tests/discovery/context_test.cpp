@@ -86,7 +86,7 @@ TEST(Context, ABoxOnTheTableStandsOnItsSupportOneOnTopOnItAndOneInTheAirOnNothin
   const std::vector<SegmentContext> c = contextsOf(s);
   ASSERT_EQ(c.size(), 3u);
   EXPECT_EQ(c[0].footing, Footing::kSupport);
-  EXPECT_EQ(c[1].footing, Footing::kOnObject);
+  EXPECT_EQ(c[1].footing, Footing::kOnSurface);
   EXPECT_EQ(c[2].footing, Footing::kNone);
   // Heights of the lowest vertex over the table, to the millimetre.
   EXPECT_NEAR(c[0].height_m, 0.0, 1e-3);
@@ -116,8 +116,35 @@ TEST(Context, ABoxAsHighAsTheStackedOneButBesideItFloats) {
   s.boxes.pop_back();
   s.boxes.push_back(describeSegment(s.mesh, addBox(s.mesh, 0.1f, 0.1f, kTable + 0.08f, 0.06f)));
   const std::vector<SegmentContext> c = contextsOf(s);
-  EXPECT_EQ(c[1].footing, Footing::kOnObject);
+  EXPECT_EQ(c[1].footing, Footing::kOnSurface);
   EXPECT_EQ(c[2].footing, Footing::kNone);
+}
+
+TEST(Context, AFlatPatchOnTheTableRisingLessThanACentimetreIsAPatchOfIt) {
+  Scene s = tableWithBoxes();
+  // A 6 cm square 5 mm over the table, facing up: what the support's 1 cm band leaves of a
+  // noisy table.
+  std::vector<std::int32_t> patch;
+  const std::int32_t first = static_cast<std::int32_t>(s.mesh.positions.size());
+  for (int j = 0; j < 10; ++j) {
+    for (int i = 0; i < 10; ++i) {
+      patch.push_back(static_cast<std::int32_t>(s.mesh.positions.size()));
+      s.mesh.positions.emplace_back(0.1f + 0.006f * i, -0.2f + 0.006f * j, kTable + 0.005f);
+      s.mesh.normals.emplace_back(0.0f, 0.0f, 1.0f);
+    }
+  }
+  TriangleMesh grid;
+  addGridTriangles(grid, 10, 10);
+  for (const Eigen::Vector3i& t : grid.triangles) s.mesh.triangles.push_back(t.array() + first);
+  s.boxes.push_back(describeSegment(s.mesh, patch));
+  const std::vector<SegmentContext> c = contextsOf(s);
+  EXPECT_EQ(c[0].footing, Footing::kSupport);
+  EXPECT_NEAR(c[0].rise_m, 0.08, 1e-3);
+  EXPECT_EQ(c[3].footing, Footing::kPatch);
+  EXPECT_NEAR(c[3].rise_m, 0.005, 1e-4);
+  // The flat table's noise is 0, so only the least rise of 1 cm decides.
+  EXPECT_NEAR(c[3].support_noise_m, 0.0, 1e-4);
+  EXPECT_TRUE(std::isnan(c[2].rise_m));  // floating: no support to rise over
 }
 
 TEST(Context, BadConfigsAndSupportFlagsAreRefused) {
@@ -192,10 +219,10 @@ TEST(ObjectSet, StandingCandidatesComeFirstAndNoTwoObjectsShareAVertex) {
   // 0.1 ln(share of its region) and takes 0.6 from a floating candidate.
   const double n = static_cast<double>(s.boxes[2].vertices.size());
   EXPECT_GT(ranked[1].score, 0.0);
-  EXPECT_NEAR(ranked[1].object_score,
-              ranked[1].score * n / (n + 100) +
-                  0.1 * std::log(ranked[1].context.share_of_region) - 0.6,
-              1e-9);
+  EXPECT_NEAR(
+      ranked[1].object_score,
+      ranked[1].score * n / (n + 100) + 0.1 * std::log(ranked[1].context.share_of_region) - 0.6,
+      1e-9);
 }
 
 TEST(ObjectSet, AStandingBoxOutranksAFloatingOneThatScoresALittleBetter) {

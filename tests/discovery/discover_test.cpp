@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <set>
 #include <vector>
 
 #include "objscan/discovery/discover.h"
@@ -60,9 +61,72 @@ TEST(Discover, FindsBothObjectsOnATableAndRanksThemFirst) {
   EXPECT_GE(b, 0.7);
   EXPECT_NE(vertexIoU(h[0].segment.vertices, round) > 0.5,
             vertexIoU(h[1].segment.vertices, round) > 0.5);
-  for (std::size_t i = 1; i < h.size(); ++i) EXPECT_GE(h[i - 1].score, h[i].score);
+  // The object set first (object ranks 1, 2, ... by object score), then the alternatives by
+  // score; no two objects share a vertex.
+  std::size_t objects = 0;
+  while (objects < h.size() && h[objects].object_rank == objects + 1) ++objects;
+  EXPECT_GE(objects, 2u);
+  std::vector<std::uint8_t> taken(mesh.positions.size(), 0);
+  for (std::size_t i = 0; i < h.size(); ++i) {
+    if (i < objects) {
+      if (i > 0) {
+        EXPECT_GE(h[i - 1].object_score, h[i].object_score);
+      }
+      for (std::int32_t v : h[i].segment.vertices) EXPECT_EQ(taken[v]++, 0) << v;
+    } else {
+      EXPECT_EQ(h[i].object_rank, 0u);
+      if (i > objects) {
+        EXPECT_GE(h[i - 1].score, h[i].score);
+      }
+    }
+  }
   EXPECT_GT(h[0].measures.local_convexity, 0.3);
   EXPECT_GE(timings.segment_ms, 0.0);
+}
+
+TEST(Discover, EveryScenesObjectsComeFirstAndACatalogSceneGetsTheSameContextAgain) {
+  testing::TempDir dir;
+  SceneDiscoveryOptions options;
+  options.config.min_size = 200;  // as above: a 4 mm grid
+  options.catalog = dir / "catalog.sqlite";
+  options.progress_label = "";
+  const auto run = [&] {
+    std::vector<SceneInput> scenes;
+    scenes.push_back(sceneFromMesh("a", table(true), "hash a"));
+    TriangleMesh moved = table(true);
+    for (Eigen::Vector3f& p : moved.positions) p.y() += 0.01f;  // another scene, same objects
+    scenes.push_back(sceneFromMesh("b", std::move(moved), "hash b"));
+    return discoverScenes(std::move(scenes), options);
+  };
+  const SceneDiscovery first = run();
+  const SceneDiscovery second = run();
+  EXPECT_FALSE(first.scenes[0].from_catalog);
+  EXPECT_TRUE(second.scenes[0].from_catalog);
+  // Both scenes' objects before any alternative, by object score.
+  std::size_t objects = 0;
+  while (objects < first.ranked.size() && first.ranked[objects].hypothesis.object_rank > 0) {
+    if (objects > 0) {
+      EXPECT_GE(first.ranked[objects - 1].hypothesis.object_score,
+                first.ranked[objects].hypothesis.object_score);
+    }
+    ++objects;
+  }
+  std::set<std::size_t> scenes;
+  for (std::size_t i = 0; i < objects; ++i) scenes.insert(first.ranked[i].scene);
+  EXPECT_EQ(scenes.size(), 2u);
+  for (std::size_t i = objects; i < first.ranked.size(); ++i) {
+    EXPECT_EQ(first.ranked[i].hypothesis.object_rank, 0u) << i;
+  }
+  // From the catalog, which keeps no context, the same objects in the same order.
+  ASSERT_EQ(second.ranked.size(), first.ranked.size());
+  for (std::size_t i = 0; i < first.ranked.size(); ++i) {
+    const Hypothesis &a = first.ranked[i].hypothesis, &b = second.ranked[i].hypothesis;
+    EXPECT_EQ(b.segment.vertices, a.segment.vertices) << i;
+    EXPECT_EQ(b.object_rank, a.object_rank) << i;
+    EXPECT_EQ(b.context.footing, a.context.footing) << i;
+    EXPECT_DOUBLE_EQ(b.context.share_of_region, a.context.share_of_region) << i;
+  }
+  EXPECT_EQ(first.ranked[0].hypothesis.context.footing, Footing::kSupport);
 }
 
 TEST(Discover, MatchesMeasuringEveryCandidateOnItsOwn) {
@@ -124,6 +188,8 @@ TEST(Discover, MatchesMeasuringEveryCandidateOnItsOwn) {
   const std::vector<double> scores = averageScores(distinct_measures);
   const std::vector<std::size_t> kept = suppressOverlaps(distinct, scores, config.max_iou);
 
+  // The paper's list: suppression's, by score (the object set reorders it).
+  config.objects.enabled = false;
   DiscoveryTimings timings;
   const std::vector<Hypothesis> h = discoverObjects(mesh, config, &timings);
   EXPECT_EQ(timings.candidate_count, candidates.size());

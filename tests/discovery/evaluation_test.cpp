@@ -126,12 +126,6 @@ TEST(Evaluate, WritesCurvesTableAndPlot) {
   EXPECT_EQ(png.rows, 700);
 }
 
-}  // namespace
-}  // namespace objscan::discovery
-
-namespace objscan::discovery {
-namespace {
-
 TEST(EvaluateRanking, RanksInIgnoredRegionsCountNeitherForNorAgainst) {
   // Objects 1 (vertices 0-3) and 2 (4-7); 8-11 background; 12-15 ignored (a plant).
   std::vector<std::int32_t> labels(16, 0);
@@ -152,7 +146,8 @@ TEST(EvaluateRanking, RanksInIgnoredRegionsCountNeitherForNorAgainst) {
   EXPECT_EQ(e.found, 2u);
   // AP: (1/1 + 2/3) / 2, as if the plant were not listed.
   EXPECT_NEAR(e.ap, (1.0 + 2.0 / 3.0) / 2.0, 1e-12);
-  const RankingEvaluation without = evaluateRanking(truth, {{0, 1, 2, 3}, {8, 9, 10}, {4, 5, 6, 7}}, 0.5);
+  const RankingEvaluation without =
+      evaluateRanking(truth, {{0, 1, 2, 3}, {8, 9, 10}, {4, 5, 6, 7}}, 0.5);
   EXPECT_DOUBLE_EQ(without.ap, e.ap);
 }
 

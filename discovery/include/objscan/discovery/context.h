@@ -12,22 +12,21 @@
 
 /// Where a candidate is and how well it was seen: what the paper's five shape measures do not
 /// say (its section VI names context as future work). objscan uses it to choose the object set,
-/// the hypotheses a user sees (objects.h).
+/// the hypotheses a user sees first (ObjectSetConfig in discover.h).
 namespace objscan::discovery {
 
 /// How a candidate stands in its scene.
 enum class Footing : std::uint8_t {
-  kNone,       ///< nothing holds it up: a piece of foliage, a fragment of a lamp or a wall's edge
-  kSupport,    ///< its lowest part touches a support surface (a table, a shelf board, the floor)
+  kNone,     ///< nothing holds it up: a piece of foliage, a fragment of a lamp or a wall's edge
+  kSupport,  ///< its lowest part touches a support surface (a table, a shelf board, the floor)
   /// its lowest part rests on another surface facing up: an object under it (a stack), or a
   /// shelf board too small to be a support
-  kOnObject,
+  kOnSurface,
   /// it lies on a support but rises no more than the support's noise: a patch of the table
   kPatch,
 };
-/// "none", "support", "object", "patch".
+/// "none", "support", "surface", "patch".
 const char* toString(Footing footing);
-
 
 struct ContextConfig {
   /// A candidate stands on a support when its lowest vertex lies at most this far above the
@@ -53,7 +52,7 @@ struct ContextConfig {
 struct SegmentContext {
   Footing footing = Footing::kNone;
   /// Height of its lowest vertex above the plane of the support it stands on or, for
-  /// kOnObject and kNone, above the nearest support plane under it; NaN without one.
+  /// kOnSurface and kNone, above the nearest support plane under it; NaN without one.
   double height_m = std::numeric_limits<double>::quiet_NaN();
   /// Its share of the part of the scene it belongs to: the connected region of the mesh off the
   /// supports that holds it (an object alone on a table is all of its region: 1; a leaf of a

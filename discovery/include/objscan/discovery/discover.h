@@ -25,13 +25,13 @@ namespace objscan::discovery {
 /// The object set: objscan's answer to "which objects are on this desk", beside the paper's ranked
 /// list of overlapping hypotheses. Every candidate gets an object score (its score weighed by its
 /// evidence, its share of its region and how it stands: SegmentContext), and candidates are
-/// taken greedily by it: one joins when at most max_taken_share of its vertices belong to one
+/// taken greedily by it: one joins when at most max_taken_share of its vertices belong to those
 /// taken before (those few are then left out of it), so every surface region belongs to at most
 /// one object. The other hypotheses (non-maximum suppression at max_iou, as the paper's) follow
 /// as alternatives. docs/discovery.md, "Object set", says why and what it was chosen on.
 struct ObjectSetConfig {
-  bool enabled = true;
-  ContextConfig context;
+  bool enabled = true;    ///< off: the paper's list (rankCandidates')
+  ContextConfig context;  ///< how footings are judged
   /// Evidence: with f = n / (n + evidence_vertices), n its vertex count, a positive score is
   /// multiplied by f and a negative one divided by it: the measures of a blob of a few dozen
   /// vertices, a few noise lengths across, say little, so it ranks lower either way. Vertices at
@@ -43,10 +43,11 @@ struct ObjectSetConfig {
   /// for a hundredth).
   double region_share_weight = 0.1;
   /// Less these, in the score's units, for a candidate that stands on another surface rather
-  /// than a support (Footing::kOnObject), and for one that stands on nothing or is a patch of a
+  /// than a support (Footing::kOnSurface), and for one that stands on nothing or is a patch of a
   /// support (Footing::kNone, kPatch).
   double on_surface_penalty = 0.3;
   double floating_penalty = 0.6;
+  /// The share of a candidate's vertices that objects before it may already hold.
   double max_taken_share = 0.1;
   /// Throws std::invalid_argument naming the first bad field.
   void validate() const;
@@ -107,8 +108,8 @@ struct Hypothesis {
   ShapeMeasures measures;
   double score = 0.0;  ///< the objectness score (model or average): higher is more object-like
   SegmentContext context;
-  /// The score weighed by the evidence (ObjectSetConfig::evidence_vertices); NaN when the object
-  /// set is off.
+  /// What the object set is chosen by (ObjectSetConfig): the score weighed by the evidence and
+  /// the region share, less the footing's penalty; NaN when the object set is off.
   double object_score = std::numeric_limits<double>::quiet_NaN();
   /// Its place in its scene's object set (1 = first), 0 for an alternative. An object's segment
   /// may be its candidate less a few vertices that an object before it holds.
@@ -176,7 +177,8 @@ SceneCandidates findCandidates(const TriangleMesh& mesh, const DiscoveryConfig& 
 
 /// Fills `candidates.context` (and `effective`): for candidates the catalog held, which it keeps
 /// without their context. Builds the graph and finds the supports again.
-void addContext(const TriangleMesh& mesh, SceneCandidates& candidates, const DiscoveryConfig& config);
+void addContext(const TriangleMesh& mesh, SceneCandidates& candidates,
+                const DiscoveryConfig& config);
 
 /// Fills each candidate's recurrence against the index's segments of scenes other than
 /// `scene_id` (NaN where none is within the extent window).

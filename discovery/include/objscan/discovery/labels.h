@@ -24,7 +24,9 @@ inline constexpr float kLabelledMeshDistanceM = 0.015f;
 
 struct LabelTransfer {
   std::vector<std::int32_t> labels;
-  std::vector<std::uint8_t> ignore;  ///< 1 where the labels say nothing, or no labelled vertex is near
+  /// 1 where the labels say nothing, or no labelled vertex is near.
+  std::vector<std::uint8_t> ignore;
+  std::size_t unmatched = 0;  ///< vertices with no labelled vertex near
 };
 /// Per vertex of `mesh`, the label and ignore flag (TriangleMesh::ignore; 0 when `truth` has
 /// none) of `truth`'s nearest vertex within `max_distance_m`; ignored where none is that near.

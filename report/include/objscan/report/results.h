@@ -45,8 +45,10 @@ struct HypothesisRecord {
   /// Its place in its scene's object set (1 = first; the hypotheses a user sees, which never
   /// overlap); 0 for an alternative; nothing in a file from before the object set.
   std::optional<std::size_t> object_rank;
-  std::optional<double> object_score;  ///< the score weighed by its evidence
-  /// Its context (discovery::SegmentContext): how it stands ("support", "object", "patch" or
+  /// What the object set is chosen by: the score weighed by its evidence and region share, less
+  /// its footing's penalty (discovery::Hypothesis::object_score).
+  std::optional<double> object_score;
+  /// Its context (discovery::SegmentContext): how it stands ("support", "surface", "patch" or
   /// "none"; empty when unknown), the height of its lowest point over the support plane under
   /// it, its share of its region off the supports, how well fusion saw it, and for one on a
   /// support how far it rises over it and the support's noise there.
