@@ -11,7 +11,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
-#include "disjoint_sets.h"
+#include "connected_regions.h"
 #include "point_index.h"
 
 namespace objscan::discovery {
@@ -67,8 +67,29 @@ constexpr float kNoiseRadiusM = 0.05f;
 struct Lowest {
   int plane = -1;       ///< the plane it is measured against (under it), -1 without one
   float height = 0.0f;  ///< its lowest vertex's height above that plane
-  std::int32_t vertex = -1;
 };
+
+/// How far a candidate's foot reaches above its lowest point, and how far from it what holds it
+/// up may lie: the config's gap, or gap_edges of its own mean edge length.
+float footGap(const ContextConfig& config, const SegmentContext& c) {
+  return std::max(config.gap_m, config.gap_edges * static_cast<float>(c.mean_edge_m));
+}
+
+/// The vertices of `vertices` at most `max_height` over `plane`.
+std::vector<std::int32_t> footOf(const TriangleMesh& mesh,
+                                 const std::vector<std::int32_t>& vertices, const UpPlane& plane,
+                                 float max_height) {
+  std::vector<std::int32_t> foot;
+  for (std::int32_t v : vertices) {
+    if (plane.height(mesh.positions[static_cast<std::size_t>(v)]) <= max_height) foot.push_back(v);
+  }
+  return foot;
+}
+
+/// Every k-th index of a list of `size`, so that at most `most` are visited.
+std::size_t strideFor(std::size_t size, std::size_t most) {
+  return std::max<std::size_t>(1, (size + most - 1) / most);
+}
 
 }  // namespace
 
@@ -120,20 +141,12 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
   const std::vector<UpPlane> planes = orientedPlanes(mesh, supports);
 
   // The mesh off the supports in connected regions, and how many vertices each holds.
-  DisjointSets regions(n);
-  for (const MeshEdge& e : graph.edges) {
-    if (supports.on_support[static_cast<std::size_t>(e.a)] ||
-        supports.on_support[static_cast<std::size_t>(e.b)]) {
-      continue;
-    }
-    const std::int32_t a = regions.find(e.a), b = regions.find(e.b);
-    if (a != b) regions.attach(a, b);
-  }
-  std::vector<std::int32_t> region(n);
+  std::vector<std::uint8_t> off_support(n);
+  for (std::size_t v = 0; v < n; ++v) off_support[v] = !supports.on_support[v];
+  const std::vector<std::int32_t> region = connectedRegions(graph, off_support);
   std::vector<std::size_t> region_size(n, 0);
   for (std::size_t v = 0; v < n; ++v) {
-    region[v] = regions.find(static_cast<std::int32_t>(v));
-    if (!supports.on_support[v]) ++region_size[static_cast<std::size_t>(region[v])];
+    if (off_support[v]) ++region_size[static_cast<std::size_t>(region[v])];
   }
   // Mean edge length around each vertex: a candidate's noise scale is the mean over its own.
   std::vector<float> edge_sum(n, 0.0f);
@@ -199,21 +212,17 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
                 static_cast<double>(in_region) /
                 static_cast<double>(region_size[static_cast<std::size_t>(own_region)]);
           }
-          const float gap =
-              std::max(config.gap_m, config.gap_edges * static_cast<float>(c.mean_edge_m));
+          const float gap = footGap(config, c);
           // Against each plane: the lowest vertex; the candidate stands on the first plane whose
           // support is right under that vertex, else it is measured against the nearest plane it
           // lies above.
           Lowest& low = lowest[i];
           for (std::size_t k = 0; k < planes.size(); ++k) {
-            float min_height = std::numeric_limits<float>::infinity();
-            std::int32_t at = -1;
+            float min_height = std::numeric_limits<float>::infinity(), rise = 0.0f;
             for (std::int32_t v : s.vertices) {
               const float h = planes[k].height(mesh.positions[static_cast<std::size_t>(v)]);
-              if (h < min_height) {
-                min_height = h;
-                at = v;
-              }
+              min_height = std::min(min_height, h);
+              rise = std::max(rise, h);
             }
             if (min_height < -config.below_m) continue;  // through or under this plane
             // Its foot: vertices within the gap of the plane (at most 64, spread evenly); it stands
@@ -221,12 +230,8 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
             bool on = false;
             std::vector<std::int32_t> foot;
             if (min_height <= gap && !support_points.empty()) {
-              for (std::int32_t v : s.vertices) {
-                if (planes[k].height(mesh.positions[static_cast<std::size_t>(v)]) <= gap) {
-                  foot.push_back(v);
-                }
-              }
-              const std::size_t stride = std::max<std::size_t>(1, (foot.size() + 63) / 64);
+              foot = footOf(mesh, s.vertices, planes[k], gap);
+              const std::size_t stride = strideFor(foot.size(), 64);
               for (std::size_t f = 0; !on && f < foot.size(); f += stride) {
                 support_index.within(mesh.positions[static_cast<std::size_t>(foot[f])],
                                      gap + kSupportSearchM, &found);
@@ -235,19 +240,14 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
             }
             if (on) {
               c.footing = Footing::kSupport;
-              low = {static_cast<int>(k), min_height, at};
+              low = {static_cast<int>(k), min_height};
               // How far it rises over the support, against the support's own noise around its foot
               // (the RMS height of the support's vertices within kNoiseRadiusM of a few foot
               // vertices): a patch of a noisy table cut off by the support's 1 cm band rises no
               // more than the table's noise.
-              float rise = 0.0f;
-              for (std::int32_t v : s.vertices) {
-                rise =
-                    std::max(rise, planes[k].height(mesh.positions[static_cast<std::size_t>(v)]));
-              }
               double sum_sq = 0.0;
               std::size_t count_sq = 0;
-              const std::size_t every = std::max<std::size_t>(1, (foot.size() + 7) / 8);
+              const std::size_t every = strideFor(foot.size(), 8);
               for (std::size_t f = 0; f < foot.size(); f += every) {
                 support_index.within(mesh.positions[static_cast<std::size_t>(foot[f])],
                                      kNoiseRadiusM, &found);
@@ -269,7 +269,7 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
               break;
             }
             if (low.plane < 0 || min_height < low.height) {
-              low = {static_cast<int>(k), min_height, at};
+              low = {static_cast<int>(k), min_height};
             }
           }
           if (low.plane >= 0) c.height_m = low.height;
@@ -305,16 +305,11 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
             lowest_height =
                 std::min(lowest_height, plane.height(mesh.positions[static_cast<std::size_t>(v)]));
           }
-          const float gap =
-              std::max(config.gap_m, config.gap_edges * static_cast<float>(c.mean_edge_m));
+          const float gap = footGap(config, c);
           // Its foot: the vertices within the gap of its lowest, at most 64 of them spread evenly.
-          std::vector<std::int32_t> foot;
-          for (std::int32_t v : s.vertices) {
-            if (plane.height(mesh.positions[static_cast<std::size_t>(v)]) <= lowest_height + gap) {
-              foot.push_back(v);
-            }
-          }
-          const std::size_t stride = std::max<std::size_t>(1, (foot.size() + 63) / 64);
+          const std::vector<std::int32_t> foot =
+              footOf(mesh, s.vertices, plane, lowest_height + gap);
+          const std::size_t stride = strideFor(foot.size(), 64);
           under.clear();
           for (std::size_t f = 0; f < foot.size(); f += stride) {
             const Eigen::Vector3f& p = mesh.positions[static_cast<std::size_t>(foot[f])];

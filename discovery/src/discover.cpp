@@ -215,6 +215,21 @@ std::vector<double> averageScores(const std::vector<ShapeMeasures>& all) {
   return scores;
 }
 
+namespace {
+
+/// The scene's supports, or none (every vertex off them) when they are disabled.
+Supports supportsOf(const TriangleMesh& mesh, const MeshGraph& graph,
+                    const DiscoveryConfig& config, const EffectiveScales& effective) {
+  if (config.supports.enabled) {
+    return findSupports(mesh, graph, config.supports, effective.support_min_vertices);
+  }
+  Supports none;
+  none.on_support.assign(mesh.positions.size(), 0);
+  return none;
+}
+
+}  // namespace
+
 SceneCandidates findCandidates(const TriangleMesh& mesh, const DiscoveryConfig& config) {
   config.validate();
   SceneCandidates out;
@@ -227,10 +242,8 @@ SceneCandidates findCandidates(const TriangleMesh& mesh, const DiscoveryConfig& 
 
   // The cuts change edge weights only, which nothing but segmentation reads (the measures read
   // the convexity flags): the graph is cut in place, and the measures see the mesh uncut.
-  Supports supports;
-  supports.on_support.assign(mesh.positions.size(), 0);
+  const Supports supports = supportsOf(mesh, graph, config, effective);
   if (config.supports.enabled) {
-    supports = findSupports(mesh, graph, config.supports, effective.support_min_vertices);
     out.support_planes = supports.planes.size();
     out.support_vertices = static_cast<std::size_t>(
         std::count(supports.on_support.begin(), supports.on_support.end(), 1));
@@ -276,14 +289,9 @@ void addContext(const TriangleMesh& mesh, SceneCandidates& candidates,
   }
   const MeshGraph graph = buildMeshGraph(mesh);
   candidates.effective = effectiveScales(graph, mesh, config);
-  Supports supports;
-  supports.on_support.assign(mesh.positions.size(), 0);
-  if (config.supports.enabled) {
-    supports =
-        findSupports(mesh, graph, config.supports, candidates.effective.support_min_vertices);
-  }
-  candidates.context =
-      segmentContexts(mesh, graph, supports, candidates.segments, config.objects.context);
+  candidates.context = segmentContexts(mesh, graph,
+                                       supportsOf(mesh, graph, config, candidates.effective),
+                                       candidates.segments, config.objects.context);
 }
 
 void addRecurrence(SceneCandidates& candidates, const RecurrenceIndex& index, std::int64_t scene_id,
@@ -300,6 +308,14 @@ void addRecurrence(SceneCandidates& candidates, const RecurrenceIndex& index, st
 }
 
 namespace {
+
+/// Each candidate's score under `model`.
+std::vector<double> scoresOf(const SceneCandidates& candidates, const ObjectnessModel& model) {
+  std::vector<double> scores;
+  scores.reserve(candidates.measures.size());
+  for (const ShapeMeasures& m : candidates.measures) scores.push_back(model.score(m));
+  return scores;
+}
 
 std::vector<Hypothesis> suppress(const SceneCandidates& candidates,
                                  const std::vector<double>& scores, double max_iou) {
@@ -321,10 +337,7 @@ std::vector<Hypothesis> suppress(const SceneCandidates& candidates,
 
 std::vector<Hypothesis> rankCandidates(const SceneCandidates& candidates,
                                        const ObjectnessModel& model, double max_iou) {
-  std::vector<double> scores;
-  scores.reserve(candidates.measures.size());
-  for (const ShapeMeasures& m : candidates.measures) scores.push_back(model.score(m));
-  return suppress(candidates, scores, max_iou);
+  return suppress(candidates, scoresOf(candidates, model), max_iou);
 }
 
 /// The smallest region share the object score's logarithm takes (ObjectSetConfig).
@@ -332,11 +345,9 @@ constexpr double kMinRegionShare = 0.001;
 
 std::vector<Hypothesis> rankObjects(const TriangleMesh& mesh, const SceneCandidates& candidates,
                                     const ObjectnessModel& model, const DiscoveryConfig& config) {
+  if (!config.objects.enabled) return rankCandidates(candidates, model, config.max_iou);
   const std::size_t n = candidates.segments.size();
-  std::vector<double> scores;
-  scores.reserve(n);
-  for (const ShapeMeasures& m : candidates.measures) scores.push_back(model.score(m));
-  if (!config.objects.enabled) return suppress(candidates, scores, config.max_iou);
+  const std::vector<double> scores = scoresOf(candidates, model);
   if (candidates.context.size() != n) {
     throw std::invalid_argument("rankObjects needs the context of every candidate");
   }

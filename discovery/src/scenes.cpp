@@ -254,14 +254,13 @@ Normalisation addRecurrenceAndNormalise(const std::vector<RecurrenceScene>& scen
 /// hypotheses best first.
 void rankAll(SceneDiscovery& run, const ObjectnessModel& scorer, const DiscoveryConfig& config) {
   for (std::size_t s = 0; s < run.scenes.size(); ++s) {
-    DiscoveryTimings& t = run.scenes[s].candidates.timings;
-    Stopwatch watch;
     DiscoveredScene& scene = run.scenes[s];
+    Stopwatch watch;
     for (Hypothesis& h : rankObjects(scene.mesh, scene.candidates, scorer, config)) {
       run.ranked.push_back({s, std::move(h)});
-      ++run.scenes[s].hypotheses;
+      ++scene.hypotheses;
     }
-    watch.stop(&t.suppress_ms, &t.suppress_cpu_ms);
+    watch.stop(&scene.candidates.timings.suppress_ms, &scene.candidates.timings.suppress_cpu_ms);
   }
   // Every scene's objects before any alternative; objects by object score, the alternatives by
   // score. Within a scene that is rankObjects' order.

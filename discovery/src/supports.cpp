@@ -14,7 +14,7 @@
 #include <pcl/sample_consensus/ransac.h>
 #include <pcl/sample_consensus/sac_model_plane.h>
 
-#include "disjoint_sets.h"
+#include "connected_regions.h"
 
 namespace objscan::discovery {
 
@@ -23,24 +23,6 @@ namespace {
 /// RANSAC draws its samples from at most this many vertices: a plane holding a few percent of a
 /// scene still has hundreds of them, and each iteration stays cheap.
 constexpr std::size_t kMaxFitPoints = 5000;
-
-/// The vertices of `members` grouped into regions connected by the graph's edges: per vertex,
-/// its region's representative (meaningful only for members).
-std::vector<std::int32_t> connectedRegions(const MeshGraph& graph,
-                                           const std::vector<std::uint8_t>& members) {
-  DisjointSets sets(members.size());
-  for (const MeshEdge& e : graph.edges) {
-    if (!members[static_cast<std::size_t>(e.a)] || !members[static_cast<std::size_t>(e.b)]) {
-      continue;
-    }
-    const std::int32_t a = sets.find(e.a), b = sets.find(e.b);
-    if (a != b) sets.attach(a, b);
-  }
-  std::vector<std::int32_t> region(members.size());
-  for (std::size_t v = 0; v < region.size(); ++v)
-    region[v] = sets.find(static_cast<std::int32_t>(v));
-  return region;
-}
 
 }  // namespace
 
