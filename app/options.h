@@ -30,7 +30,8 @@ CLI::Validator positiveNumber();
 /// fuse's and scan's: voxel size, truncation, depth range, poses, frame selection, intrinsics.
 void addFusionOptions(CLI::App* sub, pipeline::FuseOptions& o);
 
-/// discover's, eval's, train's and scan's: --min-size, --paper-segmentation.
+/// discover's, eval's, train's and scan's: --min-size, --paper-segmentation, --no-color-cuts,
+/// --no-object-set, --max-iou.
 void addDiscoveryOptions(CLI::App* sub, discovery::DiscoveryConfig& config);
 
 /// discover's and scan's --object-format ply|obj|stl|glb.

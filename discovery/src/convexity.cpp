@@ -8,6 +8,7 @@
 
 #include <tbb/parallel_for.h>
 #include <Eigen/Eigenvalues>
+#include <opencv2/imgproc.hpp>
 
 #include "disjoint_sets.h"
 
@@ -31,6 +32,14 @@ void ConvexityConfig::validate() const {
   if (min_patch_vertices < 3) {
     throw std::invalid_argument("a convexity patch needs at least 3 vertices to fit a normal");
   }
+  for (float c : colour_limits) {
+    if (!(c > 0.0f) || !std::isfinite(c)) {
+      throw std::invalid_argument("convexity colour limits must be positive");
+    }
+  }
+  if (!(colour_lightness_weight >= 0.0f) || !std::isfinite(colour_lightness_weight)) {
+    throw std::invalid_argument("the convexity colour lightness weight must be >= 0");
+  }
 }
 
 namespace {
@@ -39,6 +48,9 @@ namespace {
 struct Patches {
   std::vector<std::int32_t> of_vertex;  ///< -1 for an excluded vertex
   std::vector<Eigen::Vector3f> centroid, normal;
+  /// Mean colour in L*a*b* (L* scaled by the lightness weight); empty for a mesh without colours.
+  std::vector<Eigen::Vector3f> colour;
+  std::vector<float> colour_spread;
   std::vector<std::int32_t> size;
   /// Neighbouring patches (a < b) and how many mesh edges join them.
   std::vector<std::pair<std::int32_t, std::int32_t>> pairs;
@@ -54,8 +66,51 @@ std::int64_t cellKey(const Eigen::Vector3f& p, float size) {
   return (c(p.x()) << 42) | (c(p.y()) << 21) | c(p.z());
 }
 
+/// Each vertex's colour in L*a*b* (OpenCV's conversion: sRGB, D65), L* times lightness_weight.
+std::vector<Eigen::Vector3f> vertexColours(const TriangleMesh& mesh, float lightness_weight) {
+  const std::size_t n = mesh.colors.size();
+  std::vector<Eigen::Vector3f> out(n);
+  if (n == 0) return out;
+  cv::Mat rgb(static_cast<int>(n), 1, CV_32FC3), lab;
+  for (std::size_t v = 0; v < n; ++v) {
+    const Eigen::Vector3f c = mesh.colors[v].cast<float>() / 255.0f;
+    rgb.at<cv::Vec3f>(static_cast<int>(v)) = cv::Vec3f(c.x(), c.y(), c.z());
+  }
+  cv::cvtColor(rgb, lab, cv::COLOR_RGB2Lab);
+  for (std::size_t v = 0; v < n; ++v) {
+    const cv::Vec3f& c = lab.at<cv::Vec3f>(static_cast<int>(v));
+    out[v] = Eigen::Vector3f(c[0] * lightness_weight, c[1], c[2]);
+  }
+  return out;
+}
+
+/// Each patch's mean colour and colour spread (the RMS distance of its vertices' colours from the
+/// mean), from the vertices' colours (vertexColours).
+void patchColours(const std::vector<Eigen::Vector3f>& colours, Patches& p) {
+  const std::size_t m = p.size.size();
+  std::vector<Eigen::Vector3d> sum(m, Eigen::Vector3d::Zero());
+  std::vector<double> square(m, 0.0);
+  for (std::size_t v = 0; v < p.of_vertex.size(); ++v) {
+    if (p.of_vertex[v] < 0) continue;
+    const auto k = static_cast<std::size_t>(p.of_vertex[v]);
+    const Eigen::Vector3d c = colours[v].cast<double>();
+    sum[k] += c;
+    square[k] += c.squaredNorm();
+  }
+  p.colour.resize(m);
+  p.colour_spread.resize(m);
+  for (std::size_t k = 0; k < m; ++k) {
+    const double count = std::max(p.size[k], 1);
+    const Eigen::Vector3d mean = sum[k] / count;
+    p.colour[k] = mean.cast<float>();
+    p.colour_spread[k] =
+        static_cast<float>(std::sqrt(std::max(0.0, square[k] / count - mean.squaredNorm())));
+  }
+}
+
 Patches makePatches(const TriangleMesh& mesh, const MeshGraph& graph,
-                    const std::vector<std::uint8_t>& excluded, float size, int min_vertices) {
+                    const std::vector<std::uint8_t>& excluded, float size, int min_vertices,
+                    const std::vector<Eigen::Vector3f>& colours) {
   const std::size_t n = mesh.positions.size();
   const auto out = [&](std::size_t v) { return !excluded.empty() && excluded[v] != 0; };
   std::vector<std::int64_t> cell(n);
@@ -111,6 +166,7 @@ Patches makePatches(const TriangleMesh& mesh, const MeshGraph& graph,
     }
     if (normal.norm() > 0.0) p.normal[k] = normal.normalized().cast<float>();
   });
+  if (!colours.empty()) patchColours(colours, p);
   // Neighbouring patches, with their shared edge counts.
   std::unordered_map<std::uint64_t, std::int32_t> index;
   for (const MeshEdge& e : graph.edges) {
@@ -139,7 +195,18 @@ bool joined(const Patches& p, std::size_t a, std::size_t b, float cos_tolerance)
   return (na - nb).dot(p.centroid[a] - p.centroid[b]) > 0.0f;
 }
 
-Segmentation segmentPatches(const Patches& p, float tolerance_deg, int min_vertices) {
+/// Whether two plain patches meet at a colour edge: their colours differ by more than `limit`, and
+/// neither's colour spreads by more than it. A print on a box (text, a picture) makes patches
+/// that are far from plain at the sensor's resolution, so it is not cut into pieces; a lid of one
+/// colour on a jar of another is.
+bool colourEdge(const Patches& p, std::size_t a, std::size_t b, float limit) {
+  return (p.colour[a] - p.colour[b]).norm() > limit &&
+         std::max(p.colour_spread[a], p.colour_spread[b]) <= limit;
+}
+
+/// With a colour limit (> 0), patches that meet at a colour edge stay apart.
+Segmentation segmentPatches(const Patches& p, float tolerance_deg, int min_vertices,
+                            float colour_limit) {
   const std::size_t m = p.size.size();
   DisjointSets sets(m);
   const auto unite = [&](std::size_t a, std::size_t b) {
@@ -166,6 +233,7 @@ Segmentation segmentPatches(const Patches& p, float tolerance_deg, int min_verti
   for (const auto& [a, b] : p.pairs) {
     const auto sa = static_cast<std::size_t>(a), sb = static_cast<std::size_t>(b);
     if (p.size[sa] < min_vertices || p.size[sb] < min_vertices) continue;
+    if (colour_limit > 0.0f && colourEdge(p, sa, sb, colour_limit)) continue;
     if (joined(p, sa, sb, cos_tolerance)) unite(sa, sb);
   }
   Segmentation s;
@@ -195,13 +263,25 @@ std::vector<Segmentation> convexSegmentations(const TriangleMesh& mesh, const Me
     throw std::invalid_argument("convexSegmentations: one exclusion flag per vertex is needed");
   }
   if (!mesh.hasNormals()) throw std::invalid_argument("convexity segmentation needs normals");
-  std::vector<Segmentation> out(config.patch_sizes_m.size() * config.tolerances_deg.size());
+  // Per patch size and tolerance: geometry alone (limit 0), then each colour limit.
+  std::vector<float> limits = {0.0f};
+  if (mesh.hasColors()) {
+    limits.insert(limits.end(), config.colour_limits.begin(), config.colour_limits.end());
+  }
+  const std::vector<Eigen::Vector3f> colours =
+      limits.size() > 1 ? vertexColours(mesh, config.colour_lightness_weight)
+                        : std::vector<Eigen::Vector3f>{};
+  const std::size_t per_size = config.tolerances_deg.size() * limits.size();
+  std::vector<Segmentation> out(config.patch_sizes_m.size() * per_size);
   tbb::parallel_for(std::size_t{0}, config.patch_sizes_m.size(), [&](std::size_t i) {
     const Patches patches =
-        makePatches(mesh, graph, excluded, config.patch_sizes_m[i], config.min_patch_vertices);
+        makePatches(mesh, graph, excluded, config.patch_sizes_m[i], config.min_patch_vertices,
+                    colours);
     for (std::size_t j = 0; j < config.tolerances_deg.size(); ++j) {
-      out[i * config.tolerances_deg.size() + j] =
-          segmentPatches(patches, config.tolerances_deg[j], config.min_patch_vertices);
+      for (std::size_t c = 0; c < limits.size(); ++c) {
+        out[i * per_size + j * limits.size() + c] = segmentPatches(
+            patches, config.tolerances_deg[j], config.min_patch_vertices, limits[c]);
+      }
     }
   });
   return out;

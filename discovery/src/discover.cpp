@@ -168,6 +168,11 @@ std::string settingsKey(const DiscoveryConfig& c) {
     for (float size : c.convexity.patch_sizes_m) s << ' ' << size;
     s << " /";
     for (float t : c.convexity.tolerances_deg) s << ' ' << t;
+    if (!c.convexity.colour_limits.empty()) {
+      s << " colour";
+      for (float limit : c.convexity.colour_limits) s << ' ' << limit;
+      s << " L" << c.convexity.colour_lightness_weight;
+    }
     s << " / " << c.convexity.min_patch_vertices;
   }
   return s.str();

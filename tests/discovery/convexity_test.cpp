@@ -90,6 +90,80 @@ TEST(Convexity, ATolerancePastTheFoldsJoinsEverything) {
   }
 }
 
+/// The stand's vertices whose x is below 0 (part 2) and the others (part 3); the table: 0.
+std::vector<std::int32_t> halves(const TriangleMesh& mesh) {
+  std::vector<std::int32_t> part = parts(mesh);
+  for (std::size_t v = 0; v < part.size(); ++v) {
+    if (part[v] == 1) part[v] = mesh.positions[v].x() < 0.0f ? 2 : 3;
+  }
+  return part;
+}
+
+/// The segmentations that convexSegmentations makes with patches of the first size and the
+/// first tolerance: geometry alone, then each colour limit.
+std::vector<Segmentation> firstSizeAndTolerance(const std::vector<Segmentation>& all,
+                                                const ConvexityConfig& config) {
+  const std::size_t per_tolerance = 1 + config.colour_limits.size();
+  return {all.begin(), all.begin() + static_cast<std::ptrdiff_t>(per_tolerance)};
+}
+
+TEST(Convexity, TwoPlainColoursSplitWhatTheShapeJoins) {
+  // The stand painted red on one side of x = 0 and blue on the other, like two boxes of
+  // different colours pushed together into one block: the shape cannot tell them apart.
+  TriangleMesh mesh = standOnTable();
+  const std::vector<std::int32_t> part = halves(mesh);
+  for (std::int32_t p : part) {
+    mesh.colors.push_back(p == 2 ? Rgb8(200, 40, 30) : p == 3 ? Rgb8(30, 60, 190)
+                                                              : Rgb8(150, 140, 120));
+  }
+  const MeshGraph graph = buildMeshGraph(mesh);
+  std::vector<std::uint8_t> table(part.size());
+  for (std::size_t v = 0; v < part.size(); ++v) table[v] = part[v] == 0;
+  const ConvexityConfig config;
+  ASSERT_EQ(config.colour_limits.size(), 1u);
+  const std::vector<Segmentation> all = convexSegmentations(mesh, graph, table, config);
+  ASSERT_EQ(all.size(), config.patch_sizes_m.size() * config.tolerances_deg.size() * 2);
+  const std::vector<Segmentation> first = firstSizeAndTolerance(all, config);
+  // Geometry alone: the block is one segment (the union of the halves).
+  std::vector<std::int32_t> stand = parts(mesh);
+  EXPECT_GT(bestIoUs(first[0], stand).at(1), 0.95);
+  EXPECT_LT(bestIoUs(first[0], part).at(2), 0.6);
+  // With the colour cut: each half on its own.
+  const std::map<std::int32_t, double> best = bestIoUs(first[1], part);
+  EXPECT_GT(best.at(2), 0.95);
+  EXPECT_GT(best.at(3), 0.95);
+  // No colour cuts asked for: geometry alone, as for a mesh without colours.
+  ConvexityConfig shape_only;
+  shape_only.colour_limits.clear();
+  EXPECT_EQ(convexSegmentations(mesh, graph, table, shape_only).size(),
+            config.patch_sizes_m.size() * config.tolerances_deg.size());
+  mesh.colors.clear();
+  EXPECT_EQ(convexSegmentations(mesh, graph, table, config).size(),
+            config.patch_sizes_m.size() * config.tolerances_deg.size());
+}
+
+TEST(Convexity, APrintDoesNotCutAnObjectIntoPieces) {
+  // The stand printed with a fine check of black and white (one vertex, 2.5 mm, per square) on
+  // the red half: no patch of it is plain, so the colour cut leaves the stand whole, although
+  // the check's mean colour differs from the plain blue half by far more than the limit.
+  TriangleMesh mesh = standOnTable();
+  const std::vector<std::int32_t> part = halves(mesh);
+  const std::size_t n = 161;
+  for (std::size_t v = 0; v < part.size(); ++v) {
+    const bool dark = (v % n + v / n) % 2 == 0;
+    mesh.colors.push_back(part[v] == 2   ? (dark ? Rgb8(10, 10, 10) : Rgb8(245, 245, 245))
+                          : part[v] == 3 ? Rgb8(30, 60, 190)
+                                         : Rgb8(150, 140, 120));
+  }
+  const MeshGraph graph = buildMeshGraph(mesh);
+  std::vector<std::uint8_t> table(part.size());
+  for (std::size_t v = 0; v < part.size(); ++v) table[v] = part[v] == 0;
+  const ConvexityConfig config;
+  const std::vector<Segmentation> first =
+      firstSizeAndTolerance(convexSegmentations(mesh, graph, table, config), config);
+  EXPECT_GT(bestIoUs(first[1], parts(mesh)).at(1), 0.95);
+}
+
 TEST(Convexity, BadSettingsAreRejected) {
   const TriangleMesh mesh = standOnTable();
   const MeshGraph graph = buildMeshGraph(mesh);
@@ -104,6 +178,12 @@ TEST(Convexity, BadSettingsAreRejected) {
   EXPECT_THROW(config.validate(), std::invalid_argument);
   EXPECT_THROW(convexSegmentations(mesh, graph, std::vector<std::uint8_t>(3), ConvexityConfig{}),
                std::invalid_argument);
+  config = {};
+  config.colour_limits = {0.0f};
+  EXPECT_THROW(config.validate(), std::invalid_argument);
+  config = {};
+  config.colour_lightness_weight = -1.0f;
+  EXPECT_THROW(config.validate(), std::invalid_argument);
   config = {};
   config.enabled = false;
   EXPECT_TRUE(convexSegmentations(mesh, graph, {}, config).empty());

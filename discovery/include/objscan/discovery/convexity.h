@@ -32,6 +32,16 @@ struct ConvexityConfig {
   /// A patch fits its normal only from this many vertices; smaller ones join the neighbour they
   /// share the most edges with.
   int min_patch_vertices = 6;
+  /// Colour cuts, for touching objects that meet flat or convexly (a lid on a jar, a telephone
+  /// against a book): for each entry, one more segmentation per patch size and tolerance in which
+  /// two patches the geometry would join stay apart when both are plain and their colours differ
+  /// by more than the entry. A patch is plain when its vertices' colours lie within the entry of
+  /// its mean (RMS), so a print on a box does not cut the box into pieces. Colours are compared in
+  /// CIE L*a*b* with the lightness scaled by colour_lightness_weight (shading and shadows change
+  /// lightness more than hue). Empty, or a mesh without colours: geometry only. 20 was chosen on
+  /// the 45 mOSD learn views (docs/discovery.md, "Colour").
+  std::vector<float> colour_limits = {20.0f};
+  float colour_lightness_weight = 0.5f;
 
   /// Throws std::invalid_argument naming the first bad field.
   void validate() const;
