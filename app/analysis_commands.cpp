@@ -66,6 +66,10 @@ Command addEvalCommand(CLI::App& app) {
       "'boxes=learn[0-9]\\.pcd'");
   addLabelledScenes(eval, eval_options.scenes, eval_options.catalog);
   eval->add_option("--out", eval_options.out, "Folder for the CSV files and plots")->required();
+  eval->add_option("--model", eval_options.model,
+                   "Rank with a classifier from objscan train in the per-scene figures and object "
+                   "recall, as discover --model does (default: the average of the normalised "
+                   "measures); the classifier protocol trains its own");
   addDiscoveryOptions(eval, eval_options.config);
   addSceneReading(eval, eval_options.reading);
   eval->add_option("--splits", eval_options.splits, "Random train/test halvings")

@@ -35,7 +35,8 @@ using discovery::SceneDiscovery;
 SceneDiscovery labelledScenes(const std::vector<fs::path>& arguments,
                               const discovery::DiscoveryConfig& config,
                               const std::optional<fs::path>& catalog,
-                              const discovery::SceneReading& read) {
+                              const discovery::SceneReading& read,
+                              std::optional<discovery::ObjectnessModel> model = std::nullopt) {
   config.validate();
   std::vector<discovery::SceneInput> scenes;
   discovery::SceneReading reading = read;
@@ -51,6 +52,7 @@ SceneDiscovery labelledScenes(const std::vector<fs::path>& arguments,
   discovery::SceneDiscoveryOptions options;
   options.config = config;
   options.catalog = catalog;
+  options.model = std::move(model);
   return discovery::discoverScenes(std::move(scenes), options);
 }
 
@@ -293,9 +295,12 @@ int runEval(const EvalCommandOptions& options) {
   eval.ablation = options.ablation;
   eval.validate();
   const std::vector<std::unique_ptr<Category>> categories = parseCategories(options.categories);
+  // The model is read before the output folder is made: a bad file leaves none behind.
+  std::optional<discovery::ObjectnessModel> model;
+  if (!options.model.empty()) model = discovery::ObjectnessModel::load(options.model);
   const OutputFolderLock lock = prepareOutputFolder(options.out);
   const SceneDiscovery set =
-      labelledScenes(options.scenes, options.config, options.catalog, options.reading);
+      labelledScenes(options.scenes, options.config, options.catalog, options.reading, model);
   const LabelledSegments segs = discovery::labelledSegments(set, options.config.max_iou);
   writeFileAtomically(options.out / "segments.csv", segmentsCsv(set, segs));
 
@@ -305,8 +310,13 @@ int runEval(const EvalCommandOptions& options) {
   summary["splits"] = eval.splits;
   summary["seed"] = eval.seed;
   summary["segmentation"] = options.config.supports.enabled ? "support surfaces cut" : "paper";
+  summary["ranking"] = model ? options.model.string() : std::string("average");
   std::printf("scenes        %zu, %zu segments after suppression\n", set.scenes.size(),
               segs.measures.size());
+  std::printf("ranked by     %s\n",
+              model ? (toString(model->kind()) + std::string(" (") + options.model.string() + ")")
+                          .c_str()
+                    : "average of the z-normalised measures");
   if (options.classifiers) {
     for (double iou : kLabelIous) evaluateAtIou(options, eval, segs, iou, summary);
   }

@@ -17,6 +17,9 @@ struct EvalCommandOptions {
   discovery::DiscoveryConfig config;
   discovery::SceneReading reading;               ///< how PCD scenes are read (--intrinsics)
   std::optional<std::filesystem::path> catalog;  ///< nothing: no catalog
+  /// A classifier from objscan train for discover's ranking (the per-scene figures and object
+  /// recall); empty: the average of the normalised measures. The classifier protocol is apart.
+  std::filesystem::path model;
   int splits = 20;
   std::uint64_t seed = 1;
   bool ablation = true;
