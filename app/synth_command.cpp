@@ -15,12 +15,17 @@ void runSynth(const SynthOptions& options) {
   if (options.noise != "on" && options.noise != "off") {
     throw std::invalid_argument("--noise must be 'on' or 'off', not '" + options.noise + "'");
   }
+  if (options.clutter != "plain" && options.clutter != "hard") {
+    throw std::invalid_argument("--clutter must be 'plain' or 'hard', not '" + options.clutter +
+                                "'");
+  }
   capture::checkNewFolder(options.out);  // before any work: a bad --out costs nothing
   capture::SceneConfig scene_config;
   scene_config.preset = capture::scenePresetFromString(options.preset);
   scene_config.objects = options.objects;
   scene_config.seed = options.seed;
   scene_config.object_dir = options.object_dir;
+  scene_config.hard_clutter = options.clutter == "hard";
   capture::HandheldPathConfig path_config;
   path_config.frames = options.frames;
   path_config.seed = options.seed;

@@ -5,6 +5,8 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <set>
+#include <algorithm>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
@@ -85,38 +87,101 @@ TEST(SyntheticScene, SameSeedSameSceneOtherSeedOtherScene) {
   EXPECT_FALSE(testing::bitwiseEqual(a.mesh, composeScene(config).mesh));
 }
 
+/// Every object rests where its pose says (on a support, or on the object under it), in front of
+/// the wall, and reaches into no other. Returns how many are touching another or the wall.
+int expectRestingApart(const SyntheticScene& scene) {
+  std::vector<TriangleMesh> parts;
+  std::vector<Eigen::AlignedBox3f> boxes;
+  for (const SceneObject& o : scene.objects) {
+    parts.push_back(objectMesh(scene.mesh, o.id));
+    boxes.push_back(parts.back().bounds());
+    EXPECT_EQ(parts.back().positions.size(), o.vertex_count);
+    // Resting: the lowest point is on the support the pose stands on.
+    EXPECT_NEAR(boxes.back().min().z(), o.T_W_O.translation().z(), 1e-5f) << o.name;
+    // In front of the wall, never into it.
+    EXPECT_LE(boxes.back().max().y(), SyntheticScene::kWallY + 1e-5f) << o.name;
+  }
+  int touching = 0;
+  for (std::size_t i = 0; i < parts.size(); ++i) {
+    touching += scene.objects[i].touching;
+    for (std::size_t j = 0; j < parts.size(); ++j) {
+      if (i == j || !boxes[i].intersects(boxes[j])) continue;
+      // Touching objects share faces: a point on the other's surface (within 0.1 mm) is
+      // contact, not penetration.
+      const MeshDistance surface(parts[j], 1e-4f);
+      for (const auto& p : parts[i].positions) {
+        if (!boxes[j].contains(p) || surface.closest(p).triangle >= 0) continue;
+        EXPECT_FALSE(insideClosed(parts[j], p))
+            << scene.objects[i].name << " reaches into " << scene.objects[j].name;
+        if (insideClosed(parts[j], p)) return touching;
+      }
+    }
+  }
+  return touching;
+}
+
 TEST(SyntheticScene, TwentyObjectsRestOnSupportsWithoutInterpenetrating) {
   forEachScene(20, {1u, 2u}, [](const SyntheticScene& scene, std::uint64_t) {
     ASSERT_EQ(scene.objects.size(), 20u);
     ASSERT_NO_THROW(scene.mesh.validate());
-    std::vector<TriangleMesh> parts;
-    std::vector<Eigen::AlignedBox3f> boxes;
-    for (const SceneObject& o : scene.objects) {
-      parts.push_back(objectMesh(scene.mesh, o.id));
-      boxes.push_back(parts.back().bounds());
-      EXPECT_EQ(parts.back().positions.size(), o.vertex_count);
-      // Resting: the lowest point is on the support the pose stands on.
-      EXPECT_NEAR(boxes.back().min().z(), o.T_W_O.translation().z(), 1e-5f) << o.name;
-      // In front of the wall, never into it.
-      EXPECT_LE(boxes.back().max().y(), SyntheticScene::kWallY + 1e-5f) << o.name;
-    }
-    int touching = 0;
-    for (std::size_t i = 0; i < parts.size(); ++i) {
-      touching += scene.objects[i].touching;
-      for (std::size_t j = 0; j < parts.size(); ++j) {
-        if (i == j || !boxes[i].intersects(boxes[j])) continue;
-        // Touching objects share faces: a point on the other's surface (within 0.1 mm) is
-        // contact, not penetration.
-        const MeshDistance surface(parts[j], 1e-4f);
-        for (const auto& p : parts[i].positions) {
-          if (!boxes[j].contains(p) || surface.closest(p).triangle >= 0) continue;
-          ASSERT_FALSE(insideClosed(parts[j], p))
-              << scene.objects[i].name << " reaches into " << scene.objects[j].name;
+    EXPECT_GT(expectRestingApart(scene), 0)
+        << "some objects stand flush against the wall or a neighbour";
+  });
+}
+
+TEST(SyntheticScene, HardClutterStacksSmallObjectsAmongPlantsAndCables) {
+  std::size_t small = 0, stacked = 0, objects = 0, two_tone = 0;
+  for (const ScenePreset preset :
+       {ScenePreset::kDesk, ScenePreset::kShelf, ScenePreset::kCounter}) {
+    for (const std::uint64_t seed : {1u, 2u}) {
+      SCOPED_TRACE(std::string(toString(preset)) + " seed " + std::to_string(seed));
+      SceneConfig config;
+      config.preset = preset;
+      config.objects = 20;
+      config.seed = seed;
+      config.hard_clutter = true;
+      const SyntheticScene scene = composeScene(config);
+      ASSERT_EQ(scene.objects.size(), 20u);
+      ASSERT_NO_THROW(scene.mesh.validate());
+      // Half touching at least, by the draw; the placement may fall back for a few.
+      EXPECT_GE(expectRestingApart(scene), 6);
+      const std::vector<std::string>& names = shapes::smallNames();
+      for (const SceneObject& o : scene.objects) {
+        ++objects;
+        small += std::find(names.begin(), names.end(), o.name) != names.end();
+        if (!o.stacked) continue;
+        ++stacked;
+        // On the top of another object, not on a support.
+        const float z = o.T_W_O.translation().z();
+        EXPECT_TRUE(std::any_of(scene.objects.begin(), scene.objects.end(), [&](const auto& u) {
+          return u.id != o.id && std::abs(u.T_W_O.translation().z() +
+                                          (u.box_max_O.z() - u.box_min_O.z()) - z) < 1e-4f;
+        })) << o.name << " is stacked on nothing";
+      }
+      std::map<std::int32_t, std::set<std::uint32_t>> colours;
+      std::size_t leaves = 0;
+      for (std::size_t v = 0; v < scene.mesh.positions.size(); ++v) {
+        const Rgb8& c = scene.mesh.colors[v];
+        if (scene.mesh.labels[v] > 0) {
+          colours[scene.mesh.labels[v]].insert(c.x() << 16 | c.y() << 8 | c.z());
+        } else {
+          leaves += c.y() > c.x() + 40 && c.y() > c.z() + 40;  // green: a leaf or a stem
         }
       }
+      for (const auto& [id, set] : colours) two_tone += set.size() == 2;
+      // A potted plant on desks and counters (its leaves are clutter: label 0); none fits a
+      // shelf board.
+      if (preset == ScenePreset::kShelf) {
+        EXPECT_EQ(leaves, 0u);
+      } else {
+        EXPECT_GT(leaves, 500u);
+      }
     }
-    EXPECT_GT(touching, 0) << "some objects stand flush against the wall or a neighbour";
-  });
+  }
+  // A third small, a fifth stacked where a flat top is free, half in two colours, by the draws.
+  EXPECT_GT(small, objects / 5);
+  EXPECT_GT(stacked, objects / 20);
+  EXPECT_GT(two_tone, objects / 4);
 }
 
 TEST(SyntheticScene, ObjectsFromAFolderAreUsed) {

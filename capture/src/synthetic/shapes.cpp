@@ -3,7 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <random>
 #include <stdexcept>
+
+#include <Eigen/Geometry>
 
 namespace objscan::capture::shapes {
 namespace {
@@ -78,6 +81,64 @@ TriangleMesh ball(float v) {
     profile.emplace_back(k == 0 || k == steps ? 0.0f : r * std::sin(a), r * (1.0f - std::cos(a)));
   }
   return lathe(profile, kSegments);
+}
+
+/// A sphere of radius r resting on z = 0.
+TriangleMesh sphere(float r) {
+  std::vector<Eigen::Vector2f> profile;
+  const int steps = 24;
+  for (int k = 0; k <= steps; ++k) {
+    const float a = kPi * static_cast<float>(k) / steps;
+    profile.emplace_back(k == 0 || k == steps ? 0.0f : r * std::sin(a), r * (1.0f - std::cos(a)));
+  }
+  return lathe(profile, kSegments);
+}
+
+/// A brick of 2 x 4 studs (3.2 x 1.6 x 1.15 cm with its studs), scaled up to 1.3 times.
+TriangleMesh brick(float v) {
+  const float k = 1.0f + 0.3f * v, h = 0.0096f * k, pitch = 0.008f * k;
+  TriangleMesh m = box(4 * pitch, 2 * pitch, h);
+  for (int i = 0; i < 4; ++i) {
+    for (int j = 0; j < 2; ++j) {
+      append(m, translated(lathe({{0, 0}, {0.0024f * k, 0}, {0.0024f * k, 0.0018f * k},
+                                  {0, 0.0018f * k}},
+                                 12),
+                           {(i - 1.5f) * pitch, (j - 0.5f) * pitch, h}));
+    }
+  }
+  return m;
+}
+
+/// A strawberry-like cone with a rounded tip, 2.5-3.5 cm tall, lying on its side.
+TriangleMesh berry(float v) {
+  const float h = 0.025f + 0.01f * v, r = 0.45f * h;
+  TriangleMesh m = lathe({{0, 0},
+                          {0.3f * r, 0.05f * h},
+                          {0.75f * r, 0.3f * h},
+                          {r, 0.65f * h},
+                          {0.85f * r, 0.9f * h},
+                          {0.4f * r, h},
+                          {0, h}},
+                         24);
+  // On its side: the axis along x.
+  for (Eigen::Vector3f& p : m.positions) p = Eigen::Vector3f(p.z(), p.y(), p.x());
+  // The swap mirrors the surface: turn the triangles back so that they face outwards.
+  for (Eigen::Vector3i& t : m.triangles) std::swap(t[1], t[2]);
+  return m;
+}
+
+/// A spoon-like shape: a thin handle and a shallow oval bowl, 14-17 cm long, lying flat.
+TriangleMesh spoon(float v) {
+  const float length = 0.14f + 0.03f * v;
+  return tube(
+      [&](float t) { return Eigen::Vector3f((t - 0.5f) * length, 0.0f, 0.0045f); },
+      [](float t) {
+        // The handle (t < 0.65) 4 mm thick, then the bowl, up to 2 cm across.
+        if (t < 0.65f) return 0.004f;
+        const float u = (t - 0.65f) / 0.35f;
+        return 0.004f + 0.0055f * std::sqrt(std::max(0.0f, std::sin(kPi * u)));
+      },
+      40, 16);
 }
 
 TriangleMesh keyboard(float v) {
@@ -241,6 +302,48 @@ void paint(TriangleMesh& mesh, const Rgb8& color, std::int32_t label) {
   mesh.labels.assign(mesh.positions.size(), label);
 }
 
+const std::vector<std::string>& smallNames() {
+  static const std::vector<std::string> names = {"marble", "golf_ball", "dice",
+                                                 "brick",  "berry",     "spoon"};
+  return names;
+}
+
+TriangleMesh plant(float v, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  const auto uniform = [&](float a, float b) {
+    return std::uniform_real_distribution<float>(a, b)(rng);
+  };
+  const float pot_r = 0.055f + 0.02f * v, pot_h = 0.10f + 0.03f * v;
+  TriangleMesh m = lathe({{0, 0}, {0.8f * pot_r, 0}, {pot_r, pot_h}, {0, pot_h}}, kSegments);
+  paint(m, Rgb8(170, 85, 55), 0);
+  // Leaves: thin slabs on curved stems from the soil, spread around and up.
+  const int leaves = 14 + static_cast<int>(rng() % 12);
+  for (int k = 0; k < leaves; ++k) {
+    const float azimuth = uniform(0.0f, 2.0f * kPi), rise = uniform(0.5f, 1.3f);
+    const float stem = uniform(0.08f, 0.22f), size = uniform(0.03f, 0.06f);
+    const Eigen::Vector3f out(std::cos(azimuth), std::sin(azimuth), 0.0f);
+    const auto along = [&](float t) -> Eigen::Vector3f {
+      return Eigen::Vector3f(0, 0, pot_h) + stem * t * (std::cos(rise) * out) +
+             Eigen::Vector3f(0, 0, stem * std::sin(rise) * t - 0.3f * stem * t * t);
+    };
+    TriangleMesh part = tube(along, [](float) { return 0.0015f; }, 8, 6);
+    // The leaf: a slab at the stem's end, tilted along it.
+    TriangleMesh leaf = box(size, 0.4f * size, 0.002f);
+    const Eigen::Vector3f tip = along(1.0f), dir = (tip - along(0.9f)).normalized();
+    Pose T = Pose::Identity();
+    T.linear() = Eigen::Quaternionf::FromTwoVectors(Eigen::Vector3f::UnitX(), dir)
+                     .toRotationMatrix() *
+                 Eigen::AngleAxisf(uniform(-0.8f, 0.8f), Eigen::Vector3f::UnitX())
+                     .toRotationMatrix();
+    T.translation() = tip + 0.5f * size * dir;
+    append(part, transformed(translated(leaf, {0, 0, -0.001f}), T));
+    const auto g = static_cast<std::uint8_t>(110 + rng() % 60);
+    paint(part, Rgb8(static_cast<std::uint8_t>(40 + rng() % 30), g, 45), 0);
+    append(m, part);
+  }
+  return m;
+}
+
 const std::vector<std::string>& builtinNames() {
   static const std::vector<std::string> names = {"mug",     "bowl",   "box",  "can",
                                                  "bottle",  "ball",   "book", "keyboard",
@@ -272,6 +375,18 @@ TriangleMesh builtin(const std::string& name, float v) {
     m = stapler(v);
   else if (name == "banana")
     m = banana(v);
+  else if (name == "marble")
+    m = sphere(0.008f + 0.004f * v);
+  else if (name == "golf_ball")
+    m = sphere(0.0213f);
+  else if (name == "dice")
+    m = box(0.016f + 0.004f * v, 0.016f + 0.004f * v, 0.016f + 0.004f * v);
+  else if (name == "brick")
+    m = brick(v);
+  else if (name == "berry")
+    m = berry(v);
+  else if (name == "spoon")
+    m = spoon(v);
   else
     throw std::invalid_argument("unknown built-in object '" + name + "'");
   restOnGround(m);

@@ -198,6 +198,7 @@ std::vector<Visibility> writeSyntheticRecording(const SyntheticScene& scene, con
                            {"rotation", matrixJson(o.T_W_O.rotation())}}},
                          {"vertex_count", o.vertex_count},
                          {"touching", o.touching},
+                         {"stacked", o.stacked},
                          {"visible_pixels", seen[static_cast<std::size_t>(o.id)].pixels},
                          {"frames_visible", seen[static_cast<std::size_t>(o.id)].frames}});
       visibility.push_back(seen[static_cast<std::size_t>(o.id)]);

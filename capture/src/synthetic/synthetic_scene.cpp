@@ -156,6 +156,26 @@ std::vector<Area> buildSupports(ScenePreset preset, TriangleMesh& scene, Eigen::
   return areas;
 }
 
+/// Whether an object's top is flat enough to stand another on (a box, a book, a can, a block).
+bool flatTopped(const std::string& name) {
+  for (const char* word : {"box", "book", "block", "cube", "can", "brick", "dice"}) {
+    if (name.find(word) != std::string::npos) return true;
+  }
+  return false;
+}
+
+/// Paints an object for hard_clutter: one colour, or with `split` in (0, 1) a second colour above
+/// that share of its height (a lid, a label band).
+void paintObject(TriangleMesh& object, const Rgb8& a, const Rgb8& b, float split, std::int32_t id) {
+  shapes::paint(object, a, id);
+  if (!(split > 0.0f && split < 1.0f)) return;
+  const Eigen::AlignedBox3f box = object.bounds();
+  const float z = box.min().z() + split * box.sizes().z();
+  for (std::size_t v = 0; v < object.positions.size(); ++v) {
+    if (object.positions[v].z() > z) object.colors[v] = b;
+  }
+}
+
 struct Candidate {
   std::string name;
   bool builtin = true;  ///< made with a fresh variation each time; otherwise `mesh` from a file
@@ -262,19 +282,103 @@ SyntheticScene composeScene(const SceneConfig& config) {
       taken.push_back(f);
     }
   }
+  const bool hard = config.hard_clutter;
+  // A potted plant, with room around it for its leaves: clutter that is not an object.
+  if (hard && config.preset != ScenePreset::kShelf) {
+    const Area& a = areas.front();
+    for (int attempt = 0; attempt < 50; ++attempt) {
+      const Footprint f{{uniform(a.x0, a.x1), uniform(a.y0, a.y1)}, 0.0f, {0.16f, 0.16f}, 0};
+      if (!inside(f, a) || std::any_of(taken.begin(), taken.end(),
+                                       [&](const Footprint& t) { return overlap(f, t); })) {
+        continue;
+      }
+      shapes::append(scene.mesh,
+                     shapes::translated(shapes::plant(uniform(0.0f, 1.0f), rng()),
+                                        {f.centre.x(), f.centre.y(), a.z}));
+      taken.push_back(f);
+      break;
+    }
+  }
   const std::size_t clutter = taken.size();
+  // Objects with a flat top (hard_clutter): the world height of the top and the footprint.
+  struct Base {
+    std::size_t footprint;
+    float top_z;
+  };
+  std::vector<Base> bases;
+  const double touching_fraction =
+      hard ? std::max(config.touching_fraction, 0.5) : config.touching_fraction;
 
   for (int i = 0; i < config.objects; ++i) {
     const std::int32_t id = static_cast<std::int32_t>(scene.objects.size()) + 1;
-    const bool touching = uniform(0.0f, 1.0f) < config.touching_fraction;
+    const bool touching = uniform(0.0f, 1.0f) < touching_fraction;
     bool done = false;
     // A shape that finds no room is swapped for another before giving up.
     for (int shape_try = 0; shape_try < kShapeTries && !done; ++shape_try) {
-      const Candidate& pick = pool[rng() % pool.size()];
+      const Candidate* pick = &pool[rng() % pool.size()];
+      Candidate small;
+      Rgb8 colour = kPalette[static_cast<std::size_t>(id - 1) % std::size(kPalette)], second;
+      float split = 0.0f;
+      bool stack = false;
+      if (hard) {
+        if (uniform(0.0f, 1.0f) < 0.35f) {
+          small = {shapes::smallNames()[rng() % shapes::smallNames().size()], true, {}};
+          pick = &small;
+        }
+        colour = kPalette[rng() % std::size(kPalette)];
+        second = kPalette[rng() % std::size(kPalette)];
+        if (uniform(0.0f, 1.0f) < 0.5f) split = uniform(0.3f, 0.8f);
+        stack = !bases.empty() && uniform(0.0f, 1.0f) < 0.2f;
+      }
       TriangleMesh object =
-          pick.builtin ? shapes::builtin(pick.name, uniform(0.0f, 1.0f)) : pick.mesh;
+          pick->builtin ? shapes::builtin(pick->name, uniform(0.0f, 1.0f)) : pick->mesh;
       const Eigen::AlignedBox3f box = object.bounds();
       const Eigen::Vector2f half = 0.5f * box.sizes().head<2>();
+      const auto place = [&](const Footprint& f, float z, bool on_object) {
+        SceneObject o;
+        o.id = id;
+        o.name = pick->name;
+        o.T_W_O = Pose(Eigen::Translation3f(f.centre.x(), f.centre.y(), z) *
+                       Eigen::AngleAxisf(f.yaw, Eigen::Vector3f::UnitZ()));
+        o.box_min_O = box.min();
+        o.box_max_O = box.max();
+        o.vertex_count = object.positions.size();
+        o.touching = touching || on_object;
+        o.stacked = on_object;
+        object = shapes::transformed(std::move(object), o.T_W_O);
+        if (hard) {
+          paintObject(object, colour, second, split, id);
+        } else {
+          shapes::paint(object, colour, id);
+        }
+        shapes::append(scene.mesh, object);
+        scene.objects.push_back(o);
+        // One level of stacking: what stands on an object is not a base itself.
+        if (hard && !on_object && flatTopped(pick->name)) {
+          bases.push_back({taken.size(), z + box.sizes().z()});
+        }
+        taken.push_back(f);
+        done = true;
+      };
+      // On top of an earlier object whose top is flat and large enough, within its footprint.
+      for (int attempt = 0; stack && attempt < 20 && !done; ++attempt) {
+        const Base& base = bases[rng() % bases.size()];
+        const Footprint under = taken[base.footprint];
+        const Area& a = areas[static_cast<std::size_t>(under.area)];
+        if (base.top_z + box.sizes().z() > a.z + a.max_height) continue;
+        if (half.x() > under.half.x() || half.y() > under.half.y()) continue;
+        const Eigen::Vector2f slack = under.half - half;
+        const Eigen::Vector2f offset(uniform(-slack.x(), slack.x()),
+                                     uniform(-slack.y(), slack.y()));
+        // Its own area (above the object under it), so that it overlaps only what stands there.
+        const Footprint f{under.centre + under.rotation() * offset, under.yaw, half,
+                          1000 + static_cast<int>(base.footprint)};
+        if (std::any_of(taken.begin(), taken.end(),
+                        [&](const Footprint& t) { return overlap(f, t); })) {
+          continue;
+        }
+        place(f, base.top_z, true);
+      }
       for (int attempt = 0; attempt < kPlacementAttempts && !done; ++attempt) {
         const int area_index = static_cast<int>(rng() % areas.size());
         const Area& a = areas[static_cast<std::size_t>(area_index)];
@@ -313,22 +417,7 @@ SyntheticScene composeScene(const SceneConfig& config) {
         if (std::any_of(taken.begin(), taken.end(),
                         [&](const Footprint& t) { return overlap(f, t); }))
           continue;
-
-        SceneObject o;
-        o.id = id;
-        o.name = pick.name;
-        o.T_W_O = Pose(Eigen::Translation3f(f.centre.x(), f.centre.y(), a.z) *
-                       Eigen::AngleAxisf(f.yaw, Eigen::Vector3f::UnitZ()));
-        o.box_min_O = box.min();
-        o.box_max_O = box.max();
-        o.vertex_count = object.positions.size();
-        o.touching = touching;
-        object = shapes::transformed(std::move(object), o.T_W_O);
-        shapes::paint(object, kPalette[static_cast<std::size_t>(id - 1) % std::size(kPalette)], id);
-        shapes::append(scene.mesh, object);
-        scene.objects.push_back(o);
-        taken.push_back(f);
-        done = true;
+        place(f, a.z, false);
       }
     }
     if (!done) {
@@ -339,7 +428,7 @@ SyntheticScene composeScene(const SceneConfig& config) {
   }
 
   // A cable lying across the main area from the wall, around the objects: clutter.
-  if (config.preset != ScenePreset::kShelf) {
+  for (int cable = 0; cable < (hard ? 3 : 1) && config.preset != ScenePreset::kShelf; ++cable) {
     const Area& a = areas.front();
     const float radius = 0.003f;
     for (int attempt = 0; attempt < 50; ++attempt) {

@@ -47,6 +47,15 @@ void paint(TriangleMesh& mesh, const Rgb8& color, std::int32_t label);
 /// keyboard-like slab, stapler-like shape, banana-like curved capsule, cup).
 const std::vector<std::string>& builtinNames();
 
+/// Small objects for harder scenes (1.5-4 cm across, or thin): a marble, a golf ball, a dice, a
+/// toy brick with studs, a strawberry-like berry lying on its side, a spoon-like shape lying flat.
+/// builtin() builds them too.
+const std::vector<std::string>& smallNames();
+
+/// A potted plant (pot, stems and leaves: 2 mm slabs), 25-45 cm tall, painted and labelled 0:
+/// clutter that is not an object. `seed` places the leaves.
+TriangleMesh plant(float variation, std::uint64_t seed);
+
 /// Builds the named built-in object; `variation` in [0, 1) changes its proportions a little so
 /// that two mugs in a scene differ. Throws std::invalid_argument for an unknown name.
 TriangleMesh builtin(const std::string& name, float variation = 0.5f);

@@ -32,6 +32,13 @@ struct SceneConfig {
   std::filesystem::path object_dir;
   /// Share of objects placed flush against the wall or against an earlier object.
   double touching_fraction = 0.3;
+  /// Harder clutter, for judging discovery on scenes harder than the real ones: a third of the
+  /// objects small (shapes::smallNames: 1.5-4 cm, or thin), a fifth stacked on an earlier object
+  /// with a flat top, at least half touching, colours drawn at random (so neighbours may share
+  /// one) and half the objects in two colours, a potted plant (clutter, label 0) on desks and
+  /// counters, and three cables instead of one. Off: the scene is what it was before this
+  /// existed, bit for bit.
+  bool hard_clutter = false;
 
   /// Throws std::invalid_argument naming the bad field.
   void validate() const;
@@ -46,6 +53,7 @@ struct SceneObject {
   Eigen::Vector3f box_max_O = Eigen::Vector3f::Zero();
   std::size_t vertex_count = 0;
   bool touching = false;  ///< placed flush against the wall or another object
+  bool stacked = false;   ///< standing on another object (hard_clutter)
 };
 
 /// A composed scene in the world frame W: z up, the floor at z = 0, the wall behind the supports
