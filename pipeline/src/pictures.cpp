@@ -62,7 +62,12 @@ std::vector<render::PaintedHypothesis> painted(
                                    std::to_string(mesh.positions.size()) + " vertices");
       }
     }
-    out.push_back({h.rank, h.score.value_or(NAN), h.vertices});
+    // Objects are ranked by their object score: the caption shows the number they are ranked by.
+    if (h.object_rank.value_or(0) > 0 && h.object_score) {
+      out.push_back({h.rank, *h.object_score, h.vertices, true});
+    } else {
+      out.push_back({h.rank, h.score.value_or(NAN), h.vertices});
+    }
   }
   return out;
 }

@@ -459,7 +459,8 @@ cv::Mat contactSheet(const std::vector<cv::Mat>& closeups,
     const cv::Point dot(x + swatch + 2, y + tile.height + caption / 2);
     cv::circle(sheet, dot, swatch, bgrOf(h.rank), cv::FILLED, cv::LINE_AA);
     char text[64];
-    std::snprintf(text, sizeof text, "#%zu   score %+.3f", h.rank, h.score);
+    std::snprintf(text, sizeof text, "#%zu   %s %+.3f", h.rank,
+                  h.object_score ? "object score" : "score", h.score);
     cv::putText(sheet, text, {dot.x + swatch + 8, dot.y + caption / 4}, font, scale,
                 cv::Scalar(30, 30, 30), 1, cv::LINE_AA);
   }

@@ -37,6 +37,8 @@ constexpr std::size_t kMaxRows = 50;
 struct HypothesisRow {
   std::int64_t rank = 0;
   std::optional<double> score;
+  std::optional<double> object_score;  ///< in the object set's order; none for an alternative
+  std::optional<std::string> footing;  ///< how it stands (discovery::Footing's name)
   std::array<std::optional<double>, discovery::kMeasureCount> measures;  ///< kMeasureNames order
   std::optional<std::int64_t> vertex_count;
   std::optional<std::array<double, 3>> extents_m;
@@ -115,6 +117,8 @@ HypothesesView viewOf(const Hypotheses& h) {
     HypothesisRow row;
     row.rank = static_cast<std::int64_t>(r.rank);
     row.score = r.score;
+    if (r.object_rank.value_or(0) > 0) row.object_score = r.object_score;
+    row.footing = nonEmpty(r.footing);
     const auto values = discovery::measureValues(r.measures);
     for (std::size_t k = 0; k < values.size(); ++k) row.measures[k] = finite(values[k]);
     row.vertex_count = known(r.vertex_count);
@@ -667,14 +671,25 @@ std::string hypothesesSection(const Inputs& in) {
   const bool scene_column = scenes_seen.size() > 1;
   const bool any_closeup = std::any_of(in.closeups.begin(), in.closeups.end(),
                                        [](const auto& c) { return c.has_value(); });
+  // Files from before the object set, and --no-object-set runs, have no object scores.
+  const bool object_set =
+      std::any_of(rows.begin(), rows.end(), [](const HypothesisRow& r) { return r.object_score; });
 
   html += std::string("<p class=\"note\">") +
           (any_closeup ? "Rows in bold with a colour swatch are the top-ranked hypotheses, "
                          "rendered in the overview and as close-ups. "
                        : "") +
           "The measures are the paper's, raw: &uarr; marks those where higher is more "
-          "object-like, &darr; those where lower is; a dash means unknown.</p>\n";
-  html += "<div class=\"scroll\"><table>\n<thead><tr><th>rank</th><th>score</th>";
+          "object-like, &darr; those where lower is; a dash means unknown." +
+          (object_set
+               ? " The objects come first, ranked by their object score (the score weighed by "
+                 "how much evidence the segment has and how it stands), and never overlap; the "
+                 "alternatives follow, ranked by score."
+               : "") +
+          "</p>\n";
+  html += "<div class=\"scroll\"><table>\n<thead><tr><th>rank</th>";
+  if (object_set) html += "<th>object score</th><th class=\"text\">stands</th>";
+  html += "<th>score</th>";
   // Which way each measure points, from discovery's own orientation of them.
   const auto oriented = discovery::orientedMeasures({1.0, 1.0, 1.0, 1.0, 1.0, 1.0});
   for (std::size_t k = 0; k < discovery::kMeasureCount; ++k) {
@@ -700,7 +715,13 @@ std::string hypothesesSection(const Inputs& in) {
       html +=
           "<span class=\"swatch\" style=\"background:" + rgb(kRankPalette[colour]) + "\"></span>";
     }
-    html += integerText(r.rank) + "</td><td>" + orUnknown(r.score, 3) + "</td>";
+    html += integerText(r.rank) + "</td>";
+    if (object_set) {
+      html += r.object_score ? "<td>" + orUnknown(r.object_score, 3) + "</td>"
+                             : "<td class=\"text\">alternative</td>";
+      html += "<td class=\"text\">" + escape(r.footing.value_or(std::string(kUnknown))) + "</td>";
+    }
+    html += "<td>" + orUnknown(r.score, 3) + "</td>";
     for (const std::optional<double>& m : r.measures) {
       html += m ? "<td>" + measureText(*m) + "</td>" : unknown_cell;
     }

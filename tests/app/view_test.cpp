@@ -148,6 +148,16 @@ TEST(ViewServer, ServesTheResultsTheMeshAndTheCandidates) {
   ASSERT_EQ(results["hypotheses"].size(), hypotheses.size());
   EXPECT_EQ(results["hypotheses"][0]["file"], "objects/rank_001.ply");
   EXPECT_EQ(results["labeller"], "tester");
+  // The object set's members carry the object score they are ranked by; alternatives none.
+  for (std::size_t k = 0; k < hypotheses.size(); ++k) {
+    const json& served = results["hypotheses"][k];
+    if (hypotheses[k]["object_set"].get<bool>()) {
+      EXPECT_EQ(served["object_score"], hypotheses[k]["object_score"]) << k;
+    } else {
+      EXPECT_TRUE(served["object_score"].is_null()) << k;
+    }
+    EXPECT_EQ(served["footing"], hypotheses[k]["context"]["footing"]) << k;
+  }
 
   // The mesh: the OSVM form with the scan's own vertex and triangle counts (not decimated).
   const Answer mesh = get(port, "/api/scenes/0/mesh");

@@ -337,6 +337,38 @@ TEST(Report, RanksEveryHypothesisAndMarksTheTopOnesInTheirOverviewColours) {
   EXPECT_TRUE(row(html, 4).ends_with("<td class=\"text gt unknown\">\u2013</td>")) << row(html, 4);
 }
 
+TEST(Report, ShowsTheObjectScoreAndFootingOfObjectsAndMarksAlternatives) {
+  TempDir dir;
+  writeResults(dir.path());
+  // The results above are from before the object set: no object score column.
+  EXPECT_EQ(readBytes(reportOf(dir.path())).find("object score"), std::string::npos);
+  // Ranks 1 and 2 are objects (ranked by object score), the rest alternatives.
+  Json doc = hypothesesJson(4);
+  for (int k = 0; k < 4; ++k) {
+    Json& h = doc["hypotheses"][static_cast<std::size_t>(k)];
+    h["object_set"] = k < 2;
+    if (k < 2) {
+      h["object_rank"] = k + 1;
+      h["object_score"] = 1.25 - 0.5 * k;
+    }
+    h["context"] = {{"footing", k == 1 ? "surface" : "support"}};
+  }
+  writeBytes(dir / "hypotheses.json", doc.dump(1));
+  const std::string html = readBytes(reportOf(dir.path()));
+  EXPECT_NE(html.find("<th>rank</th><th>object score</th><th class=\"text\">stands</th>"
+                      "<th>score</th>"),
+            std::string::npos);
+  EXPECT_NE(row(html, 1).find("<td>1.250</td><td class=\"text\">support</td><td>1.750</td>"),
+            std::string::npos)
+      << row(html, 1);
+  EXPECT_NE(row(html, 2).find("<td>0.750</td><td class=\"text\">surface</td><td>1.500</td>"),
+            std::string::npos)
+      << row(html, 2);
+  EXPECT_NE(row(html, 3).find("<td class=\"text\">alternative</td>"), std::string::npos)
+      << row(html, 3);
+  EXPECT_NE(html.find("The objects come first"), std::string::npos);
+}
+
 TEST(Report, SummarisesTimingsAndDrawsThePrecisionRecallCurve) {
   TempDir dir;
   writeResults(dir.path());

@@ -23,6 +23,8 @@ struct PaintedHypothesis {
   std::size_t rank = 0;
   double score = 0.0;
   std::vector<std::int32_t> vertices;
+  /// The score is an object score (discovery's object set ranks by it), captioned so.
+  bool object_score = false;
 };
 
 /// Where the overview camera comes from.
