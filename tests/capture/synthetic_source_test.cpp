@@ -242,6 +242,9 @@ TEST(ParseSynthSpec, DefaultsAreThoseOfObjscanSynth) {
   EXPECT_EQ(spec.path.frames, 300);
   EXPECT_EQ(spec.path.rate_hz, 30.0);
   EXPECT_TRUE(spec.sensor.enabled);
+  EXPECT_FALSE(spec.scene.hard_clutter);
+  EXPECT_TRUE(parseSynthSpec("synth:7,clutter=hard").scene.hard_clutter);
+  EXPECT_FALSE(parseSynthSpec("synth:7,clutter=plain").scene.hard_clutter);
   // One seed for all three, as `objscan synth --seed 7` uses it.
   EXPECT_EQ(spec.scene.seed, 7u);
   EXPECT_EQ(spec.path.seed, 7u);
@@ -277,6 +280,7 @@ TEST(ParseSynthSpec, BadSpecsAreOneLineErrorsNamingTheBadPart) {
       {"synth:7,objects=31", "objects must be a whole number from 1 to 30, not '31'"},
       {"synth:7,objects=", "objects must be a whole number from 1 to 30, not ''"},
       {"synth:7,noise=maybe", "noise must be 'on' or 'off', not 'maybe'"},
+      {"synth:7,clutter=dense", "clutter must be 'plain' or 'hard', not 'dense'"},
       {"synth:7,preset=kitchen", "unknown scene preset 'kitchen'"},
       {"synth:7,colour=red", "unknown option 'colour'"},
       {"synth:7,frames", "option 'frames' needs a value"},

@@ -59,7 +59,7 @@ SynthSpec parseSynthSpec(const std::string& spec) {
   if (!text.starts_with(kPrefix)) {
     fail(spec,
          "a synthetic source is written synth:<seed>[,preset=desk|shelf|counter][,frames=N]"
-         "[,objects=K][,noise=on|off]");
+         "[,objects=K][,noise=on|off][,clutter=plain|hard]");
   }
   std::vector<std::string_view> parts;  // the seed, then the options
   for (std::size_t begin = kPrefix.size();;) {
@@ -119,9 +119,14 @@ SynthSpec parseSynthSpec(const std::string& spec) {
     } else if (key == "noise") {
       if (value != "on" && value != "off") failValue(spec, key, "must be 'on' or 'off'", value);
       result.sensor.enabled = value == "on";
+    } else if (key == "clutter") {
+      if (value != "plain" && value != "hard") {
+        failValue(spec, key, "must be 'plain' or 'hard'", value);
+      }
+      result.scene.hard_clutter = value == "hard";
     } else {
       std::string problem = "unknown option '";
-      problem.append(key).append("' (use preset, frames, objects or noise)");
+      problem.append(key).append("' (use preset, frames, objects, noise or clutter)");
       fail(spec, problem);
     }
   }
