@@ -65,9 +65,10 @@ Command addSynthCommand(CLI::App& app) {
       ->capture_default_str();
   synth->add_option("--noise", synth_options.noise, "Depth-sensor noise model: on or off")
       ->capture_default_str();
-  synth->add_option("--clutter", synth_options.clutter,
-                    "plain, or hard: small objects (1.5-4 cm), stacks, more touching pairs, "
-                    "shared and two-tone colours, a potted plant and three cables")
+  synth
+      ->add_option("--clutter", synth_options.clutter,
+                   "plain, or hard: small objects (1.6-4.3 cm), stacks, more touching pairs, "
+                   "shared and two-tone colours, a potted plant and three cables")
       ->capture_default_str();
   synth->add_option("--intrinsics", synth_options.intrinsics,
                     "intrinsics.json (fx, fy, cx, cy, width, height); default: Xtion 640x480");

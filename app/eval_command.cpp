@@ -313,10 +313,10 @@ int runEval(const EvalCommandOptions& options) {
   summary["ranking"] = model ? options.model.string() : std::string("average");
   std::printf("scenes        %zu, %zu segments after suppression\n", set.scenes.size(),
               segs.measures.size());
-  std::printf("ranked by     %s\n",
-              model ? (toString(model->kind()) + std::string(" (") + options.model.string() + ")")
-                          .c_str()
-                    : "average of the z-normalised measures");
+  std::printf(
+      "ranked by     %s\n",
+      model ? (toString(model->kind()) + std::string(" (") + options.model.string() + ")").c_str()
+            : "average of the z-normalised measures");
   if (options.classifiers) {
     for (double iou : kLabelIous) evaluateAtIou(options, eval, segs, iou, summary);
   }

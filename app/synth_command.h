@@ -14,7 +14,7 @@ struct SynthOptions {
   int frames = 300;
   std::uint64_t seed = 1;
   std::string noise = "on";
-  std::string clutter = "plain";  ///< "plain" or "hard" (SceneConfig::hard_clutter)
+  std::string clutter = "plain";     ///< "plain" or "hard" (SceneConfig::hard_clutter)
   std::filesystem::path intrinsics;  ///< optional intrinsics.json; Xtion defaults otherwise
 };
 

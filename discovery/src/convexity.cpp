@@ -263,6 +263,9 @@ std::vector<Segmentation> convexSegmentations(const TriangleMesh& mesh, const Me
     throw std::invalid_argument("convexSegmentations: one exclusion flag per vertex is needed");
   }
   if (!mesh.hasNormals()) throw std::invalid_argument("convexity segmentation needs normals");
+  if (mesh.hasColors() && mesh.colors.size() != mesh.positions.size()) {
+    throw std::invalid_argument("convexSegmentations: one colour per vertex is needed");
+  }
   // Per patch size and tolerance: geometry alone (limit 0), then each colour limit.
   std::vector<float> limits = {0.0f};
   if (mesh.hasColors()) {
@@ -274,13 +277,12 @@ std::vector<Segmentation> convexSegmentations(const TriangleMesh& mesh, const Me
   const std::size_t per_size = config.tolerances_deg.size() * limits.size();
   std::vector<Segmentation> out(config.patch_sizes_m.size() * per_size);
   tbb::parallel_for(std::size_t{0}, config.patch_sizes_m.size(), [&](std::size_t i) {
-    const Patches patches =
-        makePatches(mesh, graph, excluded, config.patch_sizes_m[i], config.min_patch_vertices,
-                    colours);
+    const Patches patches = makePatches(mesh, graph, excluded, config.patch_sizes_m[i],
+                                        config.min_patch_vertices, colours);
     for (std::size_t j = 0; j < config.tolerances_deg.size(); ++j) {
       for (std::size_t c = 0; c < limits.size(); ++c) {
-        out[i * per_size + j * limits.size() + c] = segmentPatches(
-            patches, config.tolerances_deg[j], config.min_patch_vertices, limits[c]);
+        out[i * per_size + j * limits.size() + c] =
+            segmentPatches(patches, config.tolerances_deg[j], config.min_patch_vertices, limits[c]);
       }
     }
   });

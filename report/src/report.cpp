@@ -675,18 +675,18 @@ std::string hypothesesSection(const Inputs& in) {
   const bool object_set =
       std::any_of(rows.begin(), rows.end(), [](const HypothesisRow& r) { return r.object_score; });
 
-  html += std::string("<p class=\"note\">") +
-          (any_closeup ? "Rows in bold with a colour swatch are the top-ranked hypotheses, "
-                         "rendered in the overview and as close-ups. "
-                       : "") +
-          "The measures are the paper's, raw: &uarr; marks those where higher is more "
-          "object-like, &darr; those where lower is; a dash means unknown." +
-          (object_set
-               ? " The objects come first, ranked by their object score (the score weighed by "
-                 "how much evidence the segment has and how it stands), and never overlap; the "
-                 "alternatives follow, ranked by score."
-               : "") +
-          "</p>\n";
+  html +=
+      std::string("<p class=\"note\">") +
+      (any_closeup ? "Rows in bold with a colour swatch are the top-ranked hypotheses, "
+                     "rendered in the overview and as close-ups. "
+                   : "") +
+      "The measures are the paper's, raw: &uarr; marks those where higher is more "
+      "object-like, &darr; those where lower is; a dash means unknown." +
+      (object_set ? " The objects come first, ranked by their object score (the score weighed by "
+                    "how much evidence the segment has and how it stands), and never overlap; the "
+                    "alternatives follow, ranked by score."
+                  : "") +
+      "</p>\n";
   html += "<div class=\"scroll\"><table>\n<thead><tr><th>rank</th>";
   if (object_set) html += "<th>object score</th><th class=\"text\">stands</th>";
   html += "<th>score</th>";

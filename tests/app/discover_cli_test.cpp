@@ -672,12 +672,13 @@ TEST(EvalCli, RanksWithAModelFromTrainWhenGivenOne) {
   // it, as discover --model would, and says so.
   TempDir dir;
   const std::vector<std::string> scenes = labelledScenes(dir, 6);
-  std::vector<std::string> args = {"train", scenes[0], scenes[1], scenes[2], scenes[3],
-                                   "--kind", "rbf_svm", "--model", (dir / "model.json").string()};
+  std::vector<std::string> args = {"train",   scenes[0], scenes[1],
+                                   scenes[2], scenes[3], "--kind",
+                                   "rbf_svm", "--model", (dir / "model.json").string()};
   ASSERT_EQ(objscan(args).exit_code, 0);
   const auto eval = [&](const std::string& out, const std::vector<std::string>& extra) {
-    std::vector<std::string> a = {"eval", scenes[4], scenes[5], "--no-classifiers", "--out",
-                                  (dir / out).string()};
+    std::vector<std::string> a = {"eval",  scenes[4],           scenes[5], "--no-classifiers",
+                                  "--out", (dir / out).string()};
     a.insert(a.end(), extra.begin(), extra.end());
     return objscan(a);
   };
@@ -702,6 +703,9 @@ TEST(EvalCli, RanksWithAModelFromTrainWhenGivenOne) {
   writeFileAtomically(dir / "bad.json", "{\"not\": \"a model\"}");
   expectOneErrorLine(eval("bad", {"--model", (dir / "bad.json").string()}), 2, "bad.json");
   EXPECT_FALSE(fs::exists(dir / "bad"));
+  expectOneErrorLine(eval("missing", {"--model", (dir / "no_such_model.json").string()}), 2,
+                     "no_such_model.json");
+  EXPECT_FALSE(fs::exists(dir / "missing"));
 }
 
 /// Labels a catalog's segments as a person would in objscan view: a segment mostly on a round

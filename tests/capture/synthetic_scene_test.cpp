@@ -2,13 +2,13 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <set>
-#include <algorithm>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <set>
 
 #include "objscan/capture/synthetic/shapes.h"
 #include "objscan/capture/synthetic/synthetic_recording.h"
@@ -151,12 +151,18 @@ TEST(SyntheticScene, HardClutterStacksSmallObjectsAmongPlantsAndCables) {
         small += std::find(names.begin(), names.end(), o.name) != names.end();
         if (!o.stacked) continue;
         ++stacked;
-        // On the top of another object, not on a support.
-        const float z = o.T_W_O.translation().z();
-        EXPECT_TRUE(std::any_of(scene.objects.begin(), scene.objects.end(), [&](const auto& u) {
-          return u.id != o.id && std::abs(u.T_W_O.translation().z() +
-                                          (u.box_max_O.z() - u.box_min_O.z()) - z) < 1e-4f;
-        })) << o.name << " is stacked on nothing";
+        // On the top of an object that stands on a support, within its footprint.
+        const Eigen::Vector3f centre = o.T_W_O.translation();
+        EXPECT_TRUE(std::any_of(scene.objects.begin(), scene.objects.end(),
+                                [&](const auto& u) {
+                                  const Eigen::Vector3f c = u.T_W_O.inverse() * centre;
+                                  return u.id != o.id && !u.stacked &&
+                                         std::abs(u.box_max_O.z() - u.box_min_O.z() - c.z()) <
+                                             1e-4f &&
+                                         c.x() >= u.box_min_O.x() && c.x() <= u.box_max_O.x() &&
+                                         c.y() >= u.box_min_O.y() && c.y() <= u.box_max_O.y();
+                                }))
+            << o.name << " is stacked on nothing";
       }
       std::map<std::int32_t, std::set<std::uint32_t>> colours;
       std::size_t leaves = 0;

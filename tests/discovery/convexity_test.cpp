@@ -109,12 +109,15 @@ std::vector<Segmentation> firstSizeAndTolerance(const std::vector<Segmentation>&
 
 TEST(Convexity, TwoPlainColoursSplitWhatTheShapeJoins) {
   // The stand painted red on one side of x = 0 and blue on the other, like two boxes of
-  // different colours pushed together into one block: the shape cannot tell them apart.
+  // different colours pushed together into one block: the shape cannot tell them apart. x = 0 is
+  // a border of every patch grid, so no patch holds both colours; one that did would not be
+  // plain and would join both sides (the limit docs/discovery.md describes).
   TriangleMesh mesh = standOnTable();
   const std::vector<std::int32_t> part = halves(mesh);
   for (std::int32_t p : part) {
-    mesh.colors.push_back(p == 2 ? Rgb8(200, 40, 30) : p == 3 ? Rgb8(30, 60, 190)
-                                                              : Rgb8(150, 140, 120));
+    mesh.colors.push_back(p == 2   ? Rgb8(200, 40, 30)
+                          : p == 3 ? Rgb8(30, 60, 190)
+                                   : Rgb8(150, 140, 120));
   }
   const MeshGraph graph = buildMeshGraph(mesh);
   std::vector<std::uint8_t> table(part.size());
@@ -137,6 +140,9 @@ TEST(Convexity, TwoPlainColoursSplitWhatTheShapeJoins) {
   shape_only.colour_limits.clear();
   EXPECT_EQ(convexSegmentations(mesh, graph, table, shape_only).size(),
             config.patch_sizes_m.size() * config.tolerances_deg.size());
+  // Colours that do not match the vertices are refused, not read past their end.
+  mesh.colors.pop_back();
+  EXPECT_THROW(convexSegmentations(mesh, graph, table, config), std::invalid_argument);
   mesh.colors.clear();
   EXPECT_EQ(convexSegmentations(mesh, graph, table, config).size(),
             config.patch_sizes_m.size() * config.tolerances_deg.size());

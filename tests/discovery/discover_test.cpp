@@ -246,6 +246,19 @@ TEST(Discover, ABareTableHasNoCandidatesAndAMeshWithoutNormalsGetsThemComputed) 
     EXPECT_EQ(a[i].segment.vertices, b[i].segment.vertices);
 }
 
+TEST(Discover, TheSettingsKeyChangesWithTheColourCuts) {
+  // The catalog recomputes a scene measured with other settings: the colour cuts change the
+  // candidates, so they are part of the key; without them it is what it was before they existed.
+  DiscoveryConfig on, off;
+  off.convexity.colour_limits.clear();
+  EXPECT_NE(settingsKey(on), settingsKey(off));
+  EXPECT_NE(settingsKey(on).find(" colour 20 L0.5"), std::string::npos) << settingsKey(on);
+  EXPECT_EQ(settingsKey(off).find("colour"), std::string::npos) << settingsKey(off);
+  DiscoveryConfig other = on;
+  other.convexity.colour_lightness_weight = 1.0f;
+  EXPECT_NE(settingsKey(on), settingsKey(other));
+}
+
 TEST(Discover, AverageScoreZNormalisesAndOrientsTheMeasures) {
   ShapeMeasures good, bad;
   good.compactness = 0.5;

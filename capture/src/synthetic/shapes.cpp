@@ -72,17 +72,6 @@ TriangleMesh bottle(float v) {
                kSegments);
 }
 
-TriangleMesh ball(float v) {
-  const float r = 0.035f + 0.03f * v;
-  std::vector<Eigen::Vector2f> profile;
-  const int steps = 24;
-  for (int k = 0; k <= steps; ++k) {
-    const float a = kPi * static_cast<float>(k) / steps;
-    profile.emplace_back(k == 0 || k == steps ? 0.0f : r * std::sin(a), r * (1.0f - std::cos(a)));
-  }
-  return lathe(profile, kSegments);
-}
-
 /// A sphere of radius r resting on z = 0.
 TriangleMesh sphere(float r) {
   std::vector<Eigen::Vector2f> profile;
@@ -94,16 +83,18 @@ TriangleMesh sphere(float r) {
   return lathe(profile, kSegments);
 }
 
+TriangleMesh ball(float v) { return sphere(0.035f + 0.03f * v); }
+
 /// A brick of 2 x 4 studs (3.2 x 1.6 x 1.15 cm with its studs), scaled up to 1.3 times.
 TriangleMesh brick(float v) {
   const float k = 1.0f + 0.3f * v, h = 0.0096f * k, pitch = 0.008f * k;
   TriangleMesh m = box(4 * pitch, 2 * pitch, h);
   for (int i = 0; i < 4; ++i) {
     for (int j = 0; j < 2; ++j) {
-      append(m, translated(lathe({{0, 0}, {0.0024f * k, 0}, {0.0024f * k, 0.0018f * k},
-                                  {0, 0.0018f * k}},
-                                 12),
-                           {(i - 1.5f) * pitch, (j - 0.5f) * pitch, h}));
+      append(m, translated(
+                    lathe({{0, 0}, {0.0024f * k, 0}, {0.0024f * k, 0.0018f * k}, {0, 0.0018f * k}},
+                          12),
+                    {(i - 1.5f) * pitch, (j - 0.5f) * pitch, h}));
     }
   }
   return m;
@@ -130,15 +121,14 @@ TriangleMesh berry(float v) {
 /// A spoon-like shape: a thin handle and a shallow oval bowl, 14-17 cm long, lying flat.
 TriangleMesh spoon(float v) {
   const float length = 0.14f + 0.03f * v;
-  return tube(
-      [&](float t) { return Eigen::Vector3f((t - 0.5f) * length, 0.0f, 0.0045f); },
-      [](float t) {
-        // The handle (t < 0.65) 4 mm thick, then the bowl, up to 2 cm across.
-        if (t < 0.65f) return 0.004f;
-        const float u = (t - 0.65f) / 0.35f;
-        return 0.004f + 0.0055f * std::sqrt(std::max(0.0f, std::sin(kPi * u)));
-      },
-      40, 16);
+  return tube([&](float t) { return Eigen::Vector3f((t - 0.5f) * length, 0.0f, 0.0045f); },
+              [](float t) {
+                // The handle (t < 0.65) 4 mm thick, then the bowl, up to 2 cm across.
+                if (t < 0.65f) return 0.004f;
+                const float u = (t - 0.65f) / 0.35f;
+                return 0.004f + 0.0055f * std::sqrt(std::max(0.0f, std::sin(kPi * u)));
+              },
+              40, 16);
 }
 
 TriangleMesh keyboard(float v) {
@@ -326,15 +316,15 @@ TriangleMesh plant(float v, std::uint64_t seed) {
       return Eigen::Vector3f(0, 0, pot_h) + stem * t * (std::cos(rise) * out) +
              Eigen::Vector3f(0, 0, stem * std::sin(rise) * t - 0.3f * stem * t * t);
     };
-    TriangleMesh part = tube(along, [](float) { return 0.0015f; }, 8, 6);
+    TriangleMesh part = tube(
+        along, [](float) { return 0.0015f; }, 8, 6);
     // The leaf: a slab at the stem's end, tilted along it.
     TriangleMesh leaf = box(size, 0.4f * size, 0.002f);
     const Eigen::Vector3f tip = along(1.0f), dir = (tip - along(0.9f)).normalized();
     Pose T = Pose::Identity();
-    T.linear() = Eigen::Quaternionf::FromTwoVectors(Eigen::Vector3f::UnitX(), dir)
-                     .toRotationMatrix() *
-                 Eigen::AngleAxisf(uniform(-0.8f, 0.8f), Eigen::Vector3f::UnitX())
-                     .toRotationMatrix();
+    T.linear() =
+        Eigen::Quaternionf::FromTwoVectors(Eigen::Vector3f::UnitX(), dir).toRotationMatrix() *
+        Eigen::AngleAxisf(uniform(-0.8f, 0.8f), Eigen::Vector3f::UnitX()).toRotationMatrix();
     T.translation() = tip + 0.5f * size * dir;
     append(part, transformed(translated(leaf, {0, 0, -0.001f}), T));
     const auto g = static_cast<std::uint8_t>(110 + rng() % 60);

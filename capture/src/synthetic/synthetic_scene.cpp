@@ -292,9 +292,8 @@ SyntheticScene composeScene(const SceneConfig& config) {
                                        [&](const Footprint& t) { return overlap(f, t); })) {
         continue;
       }
-      shapes::append(scene.mesh,
-                     shapes::translated(shapes::plant(uniform(0.0f, 1.0f), rng()),
-                                        {f.centre.x(), f.centre.y(), a.z}));
+      shapes::append(scene.mesh, shapes::translated(shapes::plant(uniform(0.0f, 1.0f), rng()),
+                                                    {f.centre.x(), f.centre.y(), a.z}));
       taken.push_back(f);
       break;
     }

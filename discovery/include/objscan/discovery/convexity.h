@@ -39,8 +39,12 @@ struct ConvexityConfig {
   /// its mean (RMS), so a print on a box does not cut the box into pieces. Colours are compared in
   /// CIE L*a*b* with the lightness scaled by colour_lightness_weight (shading and shadows change
   /// lightness more than hue). Empty, or a mesh without colours: geometry only. 20 was chosen on
-  /// the 45 mOSD learn views (docs/discovery.md, "Colour").
+  /// the 45 mOSD learn views (docs/discovery.md, "Colour cuts"). A patch that straddles a colour
+  /// edge with both colours in it is not plain and joins both sides, so the cut holds only where
+  /// no such patch bridges it (a limit the docs describe).
   std::vector<float> colour_limits = {20.0f};
+  /// What L* is multiplied by before colours are compared: 0.5 (chosen, not tuned; full weight was
+  /// no better on the tuning views).
   float colour_lightness_weight = 0.5f;
 
   /// Throws std::invalid_argument naming the first bad field.

@@ -52,7 +52,7 @@ const std::vector<std::string>& builtinNames();
 /// builtin() builds them too.
 const std::vector<std::string>& smallNames();
 
-/// A potted plant (pot, stems and leaves: 2 mm slabs), 25-45 cm tall, painted and labelled 0:
+/// A potted plant (pot, stems and leaves: 2 mm slabs), 20-35 cm tall, painted and labelled 0:
 /// clutter that is not an object. `seed` places the leaves.
 TriangleMesh plant(float variation, std::uint64_t seed);
 

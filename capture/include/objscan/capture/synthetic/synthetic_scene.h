@@ -33,8 +33,8 @@ struct SceneConfig {
   /// Share of objects placed flush against the wall or against an earlier object.
   double touching_fraction = 0.3;
   /// Harder clutter, for judging discovery on scenes harder than the real ones: a third of the
-  /// objects small (shapes::smallNames: 1.5-4 cm, or thin), a fifth stacked on an earlier object
-  /// with a flat top, at least half touching, colours drawn at random (so neighbours may share
+  /// objects small (shapes::smallNames: 1.6-4.3 cm, and a flat spoon), stacked on an earlier
+  /// object with a flat top in a fifth of the draws, at least half touching, colours drawn at random (so neighbours may share
   /// one) and half the objects in two colours, a potted plant (clutter, label 0) on desks and
   /// counters, and three cables instead of one. Off: the scene is what it was before this
   /// existed, bit for bit.

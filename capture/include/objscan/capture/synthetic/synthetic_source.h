@@ -27,10 +27,10 @@ struct SynthSpec {
 };
 
 /// Parses the source spec `synth:<seed>[,preset=desk|shelf|counter][,frames=N][,objects=K]
-/// [,noise=on|off][,clutter=plain|hard]`, options in any order. Everything not given is what `objscan synth` uses by
-/// default, and <seed> feeds the scene, the path and the noise as `objscan synth --seed` does, so
-/// `synth:7` streams the frames `objscan synth --seed 7` writes. Throws std::invalid_argument
-/// with one line that starts with the spec and names the bad part, e.g.
+/// [,noise=on|off][,clutter=plain|hard]`, options in any order. Everything not given is what
+/// `objscan synth` uses by default, and <seed> feeds the scene, the path and the noise as `objscan
+/// synth --seed` does, so `synth:7` streams the frames `objscan synth --seed 7` writes. Throws
+/// std::invalid_argument with one line that starts with the spec and names the bad part, e.g.
 /// "synth:abc: the seed must be a whole number >= 0".
 SynthSpec parseSynthSpec(const std::string& spec);
 
