@@ -271,10 +271,9 @@ void addDiscoveryOptions(CLI::App* sub, discovery::DiscoveryConfig& config) {
       "Segment as the paper does, without first cutting objects from the planes they stand on "
       "(objscan's support surfaces; see the README)");
   sub->add_flag_callback(
-      "--no-color-cuts", [&config] { config.convexity.colour_limits.clear(); },
-      "Segment by shape alone: do not split touching objects where two plain colours meet (a "
-      "lid on a jar; for lighting that changes colours across one surface; see "
-      "docs/discovery.md)");
+      "--color-cuts", [&config] { config.convexity.colour_limits = {20.0f}; },
+      "Also split touching objects where two plain colours meet (a lid on a jar): more "
+      "candidates, off by default as the cut is fragile (see docs/discovery.md, Colour cuts)");
   sub->add_flag_callback(
       "--no-object-set", [&config] { config.objects.enabled = false; },
       "Rank every hypothesis by its score alone, overlapping ones included, as the paper does "

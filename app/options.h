@@ -30,7 +30,7 @@ CLI::Validator positiveNumber();
 /// fuse's and scan's: voxel size, truncation, depth range, poses, frame selection, intrinsics.
 void addFusionOptions(CLI::App* sub, pipeline::FuseOptions& o);
 
-/// discover's, eval's, train's and scan's: --min-size, --paper-segmentation, --no-color-cuts,
+/// discover's, eval's, train's and scan's: --min-size, --paper-segmentation, --color-cuts,
 /// --no-object-set, --max-iou.
 void addDiscoveryOptions(CLI::App* sub, discovery::DiscoveryConfig& config);
 

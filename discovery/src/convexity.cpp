@@ -1,6 +1,7 @@
 #include "objscan/discovery/convexity.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <stdexcept>
 #include <unordered_map>
@@ -8,7 +9,6 @@
 
 #include <tbb/parallel_for.h>
 #include <Eigen/Eigenvalues>
-#include <opencv2/imgproc.hpp>
 
 #include "disjoint_sets.h"
 
@@ -66,20 +66,27 @@ std::int64_t cellKey(const Eigen::Vector3f& p, float size) {
   return (c(p.x()) << 42) | (c(p.y()) << 21) | c(p.z());
 }
 
-/// Each vertex's colour in L*a*b* (OpenCV's conversion: sRGB, D65), L* times lightness_weight.
+/// Each vertex's colour in CIE L*a*b* (sRGB, D65 white; CIE 1976), L* times lightness_weight.
+/// Written out rather than through OpenCV's cvtColor, whose own thread pool would escape the
+/// single idle-priority thread that the live page's online discovery runs on; the formula is the
+/// standard one, with OpenCV's constants, and 8-bit channels need only a 256-entry table.
 std::vector<Eigen::Vector3f> vertexColours(const TriangleMesh& mesh, float lightness_weight) {
-  const std::size_t n = mesh.colors.size();
-  std::vector<Eigen::Vector3f> out(n);
-  if (n == 0) return out;
-  cv::Mat rgb(static_cast<int>(n), 1, CV_32FC3), lab;
-  for (std::size_t v = 0; v < n; ++v) {
-    const Eigen::Vector3f c = mesh.colors[v].cast<float>() / 255.0f;
-    rgb.at<cv::Vec3f>(static_cast<int>(v)) = cv::Vec3f(c.x(), c.y(), c.z());
+  std::array<float, 256> linear{};
+  for (int i = 0; i < 256; ++i) {
+    const float c = static_cast<float>(i) / 255.0f;
+    linear[static_cast<std::size_t>(i)] =
+        c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f);
   }
-  cv::cvtColor(rgb, lab, cv::COLOR_RGB2Lab);
-  for (std::size_t v = 0; v < n; ++v) {
-    const cv::Vec3f& c = lab.at<cv::Vec3f>(static_cast<int>(v));
-    out[v] = Eigen::Vector3f(c[0] * lightness_weight, c[1], c[2]);
+  const auto f = [](float t) { return t > 0.008856f ? std::cbrt(t) : 7.787f * t + 16.0f / 116.0f; };
+  std::vector<Eigen::Vector3f> out(mesh.colors.size());
+  for (std::size_t v = 0; v < out.size(); ++v) {
+    const Rgb8& c = mesh.colors[v];
+    const float r = linear[c.x()], g = linear[c.y()], b = linear[c.z()];
+    const float x = (0.412453f * r + 0.357580f * g + 0.180423f * b) / 0.950456f;
+    const float y = 0.212671f * r + 0.715160f * g + 0.072169f * b;
+    const float z = (0.019334f * r + 0.119193f * g + 0.950227f * b) / 1.088754f;
+    const float l = y > 0.008856f ? 116.0f * std::cbrt(y) - 16.0f : 903.3f * y;
+    out[v] = Eigen::Vector3f(l * lightness_weight, 500.0f * (f(x) - f(y)), 200.0f * (f(y) - f(z)));
   }
   return out;
 }

@@ -122,8 +122,9 @@ TEST(Convexity, TwoPlainColoursSplitWhatTheShapeJoins) {
   const MeshGraph graph = buildMeshGraph(mesh);
   std::vector<std::uint8_t> table(part.size());
   for (std::size_t v = 0; v < part.size(); ++v) table[v] = part[v] == 0;
-  const ConvexityConfig config;
-  ASSERT_EQ(config.colour_limits.size(), 1u);
+  ConvexityConfig config;
+  EXPECT_TRUE(config.colour_limits.empty()) << "off by default";
+  config.colour_limits = {20.0f};
   const std::vector<Segmentation> all = convexSegmentations(mesh, graph, table, config);
   ASSERT_EQ(all.size(), config.patch_sizes_m.size() * config.tolerances_deg.size() * 2);
   const std::vector<Segmentation> first = firstSizeAndTolerance(all, config);
@@ -164,7 +165,8 @@ TEST(Convexity, APrintDoesNotCutAnObjectIntoPieces) {
   const MeshGraph graph = buildMeshGraph(mesh);
   std::vector<std::uint8_t> table(part.size());
   for (std::size_t v = 0; v < part.size(); ++v) table[v] = part[v] == 0;
-  const ConvexityConfig config;
+  ConvexityConfig config;
+  config.colour_limits = {20.0f};
   const std::vector<Segmentation> first =
       firstSizeAndTolerance(convexSegmentations(mesh, graph, table, config), config);
   EXPECT_GT(bestIoUs(first[1], parts(mesh)).at(1), 0.95);

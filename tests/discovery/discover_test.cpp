@@ -250,7 +250,7 @@ TEST(Discover, TheSettingsKeyChangesWithTheColourCuts) {
   // The catalog recomputes a scene measured with other settings: the colour cuts change the
   // candidates, so they are part of the key; without them it is what it was before they existed.
   DiscoveryConfig on, off;
-  off.convexity.colour_limits.clear();
+  on.convexity.colour_limits = {20.0f};
   EXPECT_NE(settingsKey(on), settingsKey(off));
   EXPECT_NE(settingsKey(on).find(" colour 20 L0.5"), std::string::npos) << settingsKey(on);
   EXPECT_EQ(settingsKey(off).find("colour"), std::string::npos) << settingsKey(off);

@@ -32,17 +32,17 @@ struct ConvexityConfig {
   /// A patch fits its normal only from this many vertices; smaller ones join the neighbour they
   /// share the most edges with.
   int min_patch_vertices = 6;
-  /// Colour cuts, for touching objects that meet flat or convexly (a lid on a jar, a telephone
-  /// against a book): for each entry, one more segmentation per patch size and tolerance in which
-  /// two patches the geometry would join stay apart when both are plain and their colours differ
-  /// by more than the entry. A patch is plain when its vertices' colours lie within the entry of
-  /// its mean (RMS), so a print on a box does not cut the box into pieces. Colours are compared in
-  /// CIE L*a*b* with the lightness scaled by colour_lightness_weight (shading and shadows change
-  /// lightness more than hue). Empty, or a mesh without colours: geometry only. 20 was chosen on
-  /// the 45 mOSD learn views (docs/discovery.md, "Colour cuts"). A patch that straddles a colour
-  /// edge with both colours in it is not plain and joins both sides, so the cut holds only where
-  /// no such patch bridges it (a limit the docs describe).
-  std::vector<float> colour_limits = {20.0f};
+  /// Colour cuts (off by default; `--color-cuts` gives {20}), for touching objects that meet flat
+  /// or convexly (a lid on a jar): for each entry, one more segmentation per patch size and
+  /// tolerance in which two patches the geometry would join stay apart when both are plain and
+  /// their colours differ by more than the entry. A patch is plain when its vertices' colours lie
+  /// within the entry of its mean (RMS), so a print on a box does not cut the box into pieces.
+  /// Colours are compared in CIE L*a*b* with the lightness scaled by colour_lightness_weight
+  /// (shading and shadows change lightness more than hue). Empty, or a mesh without colours:
+  /// geometry only. Off by default because the cut is fragile: a patch that straddles the colour
+  /// edge holds both colours, is not plain, and joins both sides, so whether two objects come
+  /// apart hangs on a few borderline patches (docs/discovery.md, "Colour cuts").
+  std::vector<float> colour_limits = {};
   /// What L* is multiplied by before colours are compared: 0.5 (chosen, not tuned; full weight was
   /// no better on the tuning views).
   float colour_lightness_weight = 0.5f;
