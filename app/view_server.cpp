@@ -337,17 +337,16 @@ HttpReply ViewServer::route(const HttpRequest& request) {
     }
     Json hypotheses = Json::array();
     for (const report::HypothesisRecord& r : h.hypotheses) {
-      Json j = {
-          {"rank", r.rank},
-          {"scene", scene_index.count(r.scene) ? Json(scene_index[r.scene]) : Json(nullptr)},
-          {"score", r.score ? Json(*r.score) : Json(nullptr)},
-          // Only the object set's members have the object score they are ranked by.
-          {"object_score",
-           r.object_rank.value_or(0) > 0 && r.object_score ? Json(*r.object_score) : Json(nullptr)},
-          {"footing", r.footing.empty() ? Json(nullptr) : Json(r.footing)},
-          {"measures", measuresJson(r.measures)},
-          {"vertex_count", r.vertex_count.value_or(r.vertices.size())},
-          {"scale", r.scale ? Json(*r.scale) : Json(nullptr)}};
+      Json j = {{"rank", r.rank},
+                {"scene", scene_index.count(r.scene) ? Json(scene_index[r.scene]) : Json(nullptr)},
+                {"score", r.score ? Json(*r.score) : Json(nullptr)},
+                // Only the object set's members have the object score they are ranked by.
+                {"object_score",
+                 r.objectScoreIfObject() ? Json(*r.objectScoreIfObject()) : Json(nullptr)},
+                {"footing", r.footing.empty() ? Json(nullptr) : Json(r.footing)},
+                {"measures", measuresJson(r.measures)},
+                {"vertex_count", r.vertex_count.value_or(r.vertices.size())},
+                {"scale", r.scale ? Json(*r.scale) : Json(nullptr)}};
       if (!r.file.empty()) j["file"] = r.file;
       if (r.box) {
         j["box"] = {

@@ -63,8 +63,8 @@ std::vector<render::PaintedHypothesis> painted(
       }
     }
     // Objects are ranked by their object score: the caption shows the number they are ranked by.
-    if (h.object_rank.value_or(0) > 0 && h.object_score) {
-      out.push_back({h.rank, *h.object_score, h.vertices, true});
+    if (const std::optional<double> object_score = h.objectScoreIfObject()) {
+      out.push_back({h.rank, *object_score, h.vertices, true});
     } else {
       out.push_back({h.rank, h.score.value_or(NAN), h.vertices});
     }

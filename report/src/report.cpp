@@ -117,7 +117,7 @@ HypothesesView viewOf(const Hypotheses& h) {
     HypothesisRow row;
     row.rank = static_cast<std::int64_t>(r.rank);
     row.score = r.score;
-    if (r.object_rank.value_or(0) > 0) row.object_score = r.object_score;
+    row.object_score = r.objectScoreIfObject();
     row.footing = nonEmpty(r.footing);
     const auto values = discovery::measureValues(r.measures);
     for (std::size_t k = 0; k < values.size(); ++k) row.measures[k] = finite(values[k]);

@@ -48,6 +48,11 @@ struct HypothesisRecord {
   /// What the object set is chosen by: the score weighed by its evidence and region share, less
   /// its footing's penalty (discovery::Hypothesis::object_score).
   std::optional<double> object_score;
+  /// The object score it is ranked by when it is one of the object set; nothing for an
+  /// alternative (ranked by its score) or a file from before the object set.
+  std::optional<double> objectScoreIfObject() const {
+    return object_rank.value_or(0) > 0 ? object_score : std::nullopt;
+  }
   /// Its context (discovery::SegmentContext): how it stands ("support", "surface", "patch" or
   /// "none"; empty when unknown), the height of its lowest point over the support plane under
   /// it, its share of its region off the supports, how well fusion saw it, and for one on a
