@@ -61,6 +61,7 @@ void printDiscoverSummary(const DiscoverCommandOptions& options,
                           : h.context.footing == discovery::Footing::kSupport  ? "  on a support"
                           : h.context.footing == discovery::Footing::kOnSurface ? "  on a surface"
                           : h.context.footing == discovery::Footing::kPatch ? "  a support's patch"
+                          : h.context.footing == discovery::Footing::kUnder ? "  under a support"
                                                                                : "  floating";
     // An object is ranked by its object score, an alternative by its score.
     const bool object = h.object_rank > 0;

@@ -180,6 +180,7 @@ void LiveSession::onFrame(const pipeline::FrameEvent& e) {
         copy_state_ = CopyState::kCopying;
         copy_next_ = 0;
         copy_frame_ = e.frame.index;
+        copy_view_up_ = viewUp(e.fusion.trajectory());
         if (!copy_) copy_ = std::make_unique<fusion::TsdfVolume>(e.fusion.volume().config());
       }
       state = copy_state_;
@@ -366,8 +367,9 @@ std::shared_ptr<LiveSession::Objects> LiveSession::discoverOnCopy(int round,
         objects->message = "no surface yet";
         return;
       }
-      const std::vector<discovery::Hypothesis> found =
-          discovery::discoverObjects(mesh, settings_.discovery_config);
+      discovery::DiscoveryConfig config = settings_.discovery_config;
+      config.objects.context.view_up = copy_view_up_;
+      const std::vector<discovery::Hypothesis> found = discovery::discoverObjects(mesh, config);
       const std::size_t shown = std::min(found.size(), settings_.shown_hypotheses);
       for (std::size_t i = 0; i < shown; ++i) {
         const discovery::Hypothesis& h = found[i];

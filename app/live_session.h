@@ -158,6 +158,8 @@ class LiveSession {
   std::unique_ptr<fusion::TsdfVolume> copy_;
   std::size_t copy_next_ = 0;
   std::int64_t copy_frame_ = 0;  ///< the frame the copy was begun at
+  /// Which way was up for the camera until then (viewUp of the trajectory): the context's hint.
+  std::optional<Eigen::Vector3f> copy_view_up_;
   std::chrono::steady_clock::time_point last_round_;
   std::atomic<bool> stopping_{false};  ///< checked by the worker between its steps
   std::atomic<double> extra_bytes_{0.0};

@@ -141,6 +141,7 @@ class ScanRun {
     scenes.push_back(discovery::sceneFromMesh(
         (out_ / report::kMeshFile).string(), std::move(mesh),
         library.catalog ? discovery::contentHashOfBytes(mesh_bytes_) : std::string()));
+    if (results_.trajectory) scenes.back().view_up = viewUp(*results_.trajectory);
     mesh_bytes_.clear();
     discovery::SceneDiscovery run = discovery::discoverScenes(std::move(scenes), library);
     results_.hypotheses = writeDiscoveryResults(options, run);

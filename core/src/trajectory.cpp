@@ -151,6 +151,16 @@ void writeTumTrajectory(const std::filesystem::path& path, const Trajectory& tra
   writeFileAtomically(path, out);
 }
 
+std::optional<Eigen::Vector3f> viewUp(const Trajectory& trajectory) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (const StampedPose& p : trajectory.poses) {
+    sum -= p.T_W_C.linear().col(1).cast<double>();
+  }
+  // Half the poses facing up, half down: no direction.
+  if (!(sum.norm() > 1e-3 * static_cast<double>(trajectory.size()))) return std::nullopt;
+  return sum.normalized().cast<float>();
+}
+
 std::optional<Pose> nearestPose(const Trajectory& trajectory, double stamp_s, double max_dt_s) {
   const auto it = std::lower_bound(trajectory.poses.begin(), trajectory.poses.end(), stamp_s,
                                    [](const StampedPose& p, double s) { return p.stamp_s < s; });

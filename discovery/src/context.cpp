@@ -45,6 +45,24 @@ std::vector<UpPlane> orientedPlanes(const TriangleMesh& mesh, const Supports& su
   return planes;
 }
 
+float cosOfDegrees(float degrees) { return std::cos(degrees * std::numbers::pi_v<float> / 180.0f); }
+
+/// The ground among `planes`: the one whose free side lies nearest the camera's up (within
+/// `up_hint_deg`); -1 without a hint or with none near it.
+int groundPlane(const std::vector<UpPlane>& planes, const ContextConfig& config) {
+  if (!config.view_up) return -1;
+  const Eigen::Vector3f hint = config.view_up->normalized();
+  int ground = -1;
+  float best = cosOfDegrees(config.up_hint_deg);
+  for (std::size_t k = 0; k < planes.size(); ++k) {
+    if (const float c = planes[k].up.dot(hint); c >= best) {
+      best = c;
+      ground = static_cast<int>(k);
+    }
+  }
+  return ground;
+}
+
 bool contains(const std::vector<std::int32_t>& sorted, std::int32_t v) {
   return std::binary_search(sorted.begin(), sorted.end(), v);
 }
@@ -59,6 +77,12 @@ constexpr float kSupportSearchM = 0.02f;
 constexpr float kUpFacingDeg = 25.0f;
 /// ... and holds a candidate up when at least this many of its vertices lie under the foot.
 constexpr std::size_t kMinSurfaceUnder = 5;
+
+/// A candidate reaches up to a support over it (Footing::kUnder) when its highest vertex lies at
+/// most kUnderM under that support's plane (a table top's thickness and its frame), and the
+/// support covers its top: vertices of the support within kCoverM of the points right over it.
+constexpr float kUnderM = 0.15f;
+constexpr float kCoverM = 0.03f;
 
 /// The support's noise is measured over its vertices this close to a candidate's foot.
 constexpr float kNoiseRadiusM = 0.05f;
@@ -86,6 +110,16 @@ std::vector<std::int32_t> footOf(const TriangleMesh& mesh,
   return foot;
 }
 
+/// The vertices of `vertices` at least `min_height` over `plane`.
+std::vector<std::int32_t> topOf(const TriangleMesh& mesh, const std::vector<std::int32_t>& vertices,
+                                const UpPlane& plane, float min_height) {
+  std::vector<std::int32_t> top;
+  for (std::int32_t v : vertices) {
+    if (plane.height(mesh.positions[static_cast<std::size_t>(v)]) >= min_height) top.push_back(v);
+  }
+  return top;
+}
+
 /// Every k-th index of a list of `size`, so that at most `most` are visited.
 std::size_t strideFor(std::size_t size, std::size_t most) {
   return std::max<std::size_t>(1, (size + most - 1) / most);
@@ -101,6 +135,8 @@ const char* toString(Footing footing) {
       return "surface";
     case Footing::kPatch:
       return "patch";
+    case Footing::kUnder:
+      return "under";
     case Footing::kNone:
       break;
   }
@@ -118,6 +154,12 @@ void ContextConfig::validate() const {
   }
   if (!(below_m >= 0.0f) || !std::isfinite(below_m)) {
     throw std::invalid_argument("the context's depth below a support must be a finite number >= 0");
+  }
+  if (view_up && (!view_up->allFinite() || !(view_up->norm() > 0.0f))) {
+    throw std::invalid_argument("the camera's up must be a finite, non-zero direction");
+  }
+  if (!(up_hint_deg >= 0.0f && up_hint_deg <= 90.0f) || !(level_deg >= 0.0f && level_deg <= 90.0f)) {
+    throw std::invalid_argument("the context's angles to up must lie in [0, 90] degrees");
   }
 }
 
@@ -139,6 +181,16 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
     }
   }
   const std::vector<UpPlane> planes = orientedPlanes(mesh, supports);
+  // The planes that hold candidates up: those level with the ground when the camera's up finds
+  // one, else all.
+  const int ground = groundPlane(planes, config);
+  std::vector<bool> holds(planes.size(), true);
+  if (ground >= 0) {
+    const float min_level_cos = cosOfDegrees(config.level_deg);
+    for (std::size_t k = 0; k < planes.size(); ++k) {
+      holds[k] = planes[k].up.dot(planes[static_cast<std::size_t>(ground)].up) >= min_level_cos;
+    }
+  }
 
   // The mesh off the supports in connected regions, and how many vertices each holds.
   std::vector<std::uint8_t> off_support(n);
@@ -175,8 +227,32 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
     support_points.push_back(mesh.positions[v]);
     support_vertex.push_back(v);
   }
-  const float min_cos = std::cos(kUpFacingDeg * std::numbers::pi_v<float> / 180.0f);
+  const float min_cos = cosOfDegrees(kUpFacingDeg);
   const PointIndex support_index(support_points);
+
+  // Whether a candidate standing on plane `k` reaches up to another holding plane over it: its
+  // top within kUnderM under that plane, which covers it.
+  auto reachesUp = [&](const Segment& s, std::size_t k) {
+    std::vector<std::pair<std::uint32_t, float>> near;
+    for (std::size_t j = 0; j < planes.size(); ++j) {
+      if (j == k || !holds[j] || planes[j].up.dot(planes[k].up) < min_cos) continue;
+      float top = -std::numeric_limits<float>::infinity();
+      for (std::int32_t v : s.vertices) {
+        top = std::max(top, planes[j].height(mesh.positions[static_cast<std::size_t>(v)]));
+      }
+      if (top < -kUnderM || top > config.below_m) continue;
+      const std::vector<std::int32_t> crown = topOf(mesh, s.vertices, planes[j], top - kCoverM);
+      const std::size_t stride = strideFor(crown.size(), 64);
+      for (std::size_t f = 0; f < crown.size(); f += stride) {
+        const Eigen::Vector3f& p = mesh.positions[static_cast<std::size_t>(crown[f])];
+        support_index.within(p - planes[j].height(p) * planes[j].up, kCoverM, &near);
+        for (const auto& [point, distance_sq] : near) {
+          if (std::abs(planes[j].height(support_points[point])) <= kOwnSurfaceM) return true;
+        }
+      }
+    }
+    return false;
+  };
 
   std::vector<SegmentContext> out(segments.size());
   std::vector<Lowest> lowest(segments.size());
@@ -224,7 +300,7 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
               min_height = std::min(min_height, h);
               rise = std::max(rise, h);
             }
-            if (min_height < -config.below_m) continue;  // through or under this plane
+            if (!holds[k] || min_height < -config.below_m) continue;  // a wall; through, under
             // Its foot: vertices within the gap of the plane (at most 64, spread evenly); it stands
             // when one of them has the support's surface near (the support, not a hole's floor).
             bool on = false;
@@ -265,6 +341,8 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
               if (rise <
                   std::max<double>(config.min_rise_m, config.min_rise_noises * c.support_noise_m)) {
                 c.footing = Footing::kPatch;
+              } else if (reachesUp(s, k)) {
+                c.footing = Footing::kUnder;
               }
               break;
             }
@@ -279,14 +357,15 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
   // Stacks and boards too small to be supports: a candidate whose foot rests on a surface that
   // faces up (as its support's plane does), level with or under the foot and not its own, stands
   // on that: a box on a box, a can on a shelf board that no support plane holds.
-  // Up is the normal of the plane most candidates stand on (a table, the floor, a shelf board):
-  // a candidate's own lowest plane may be the wall it leans on.
+  // Up is the ground's normal or, without one, that of the plane most candidates stand on (a
+  // table, the floor, a shelf board): a candidate's own lowest plane may be the wall it leans on.
   std::vector<std::size_t> standing(planes.size(), 0);
   for (std::size_t i = 0; i < segments.size(); ++i) {
     if (out[i].footing == Footing::kSupport || out[i].footing == Footing::kPatch) {
       ++standing[static_cast<std::size_t>(lowest[i].plane)];
     }
   }
+  if (ground >= 0) standing[static_cast<std::size_t>(ground)] = segments.size() + 1;
   if (planes.empty() || *std::max_element(standing.begin(), standing.end()) == 0) return out;
   const UpPlane& plane = planes[static_cast<std::size_t>(
       std::max_element(standing.begin(), standing.end()) - standing.begin())];

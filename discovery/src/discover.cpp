@@ -362,7 +362,8 @@ std::vector<Hypothesis> rankObjects(const TriangleMesh& mesh, const SceneCandida
     const double count = static_cast<double>(candidates.segments[i].vertices.size());
     const double f = evidence > 0.0 ? count / (count + evidence) : 1.0;
     const SegmentContext& c = candidates.context[i];
-    // A patch of a support stands on nothing of its own: it pays what a floating one does.
+    // A patch of a support stands on nothing of its own, and what reaches up to a support is
+    // part of what holds it: they pay what a floating one does.
     const double penalty = c.footing == Footing::kSupport    ? 0.0
                            : c.footing == Footing::kOnSurface ? config.objects.on_surface_penalty
                                                              : config.objects.floating_penalty;

@@ -15,6 +15,7 @@
 #include "objscan/core/memory.h"
 #include "objscan/core/ply_io.h"
 #include "objscan/core/progress.h"
+#include "objscan/core/trajectory.h"
 #include "objscan/discovery/catalog.h"
 #include "objscan/discovery/evaluation.h"
 #include "objscan/discovery/recurrence.h"
@@ -80,6 +81,19 @@ void prepareSceneMesh(TriangleMesh& mesh) {
   mesh.validate();
 }
 
+/// The view up of the camera path beside a mesh file (trajectory.txt, as objscan fuse and scan
+/// write it); nothing when there is none or it does not read (a warning says why).
+std::optional<Eigen::Vector3f> viewUpBeside(const fs::path& mesh_path) {
+  const fs::path path = mesh_path.parent_path() / "trajectory.txt";
+  if (!fs::is_regular_file(path)) return std::nullopt;
+  try {
+    return viewUp(readTumTrajectory(path));
+  } catch (const InputError& e) {
+    log::warning(std::string(e.what()) + "; the scene's up is taken as unknown");
+    return std::nullopt;
+  }
+}
+
 GroundTruthObjects groundTruth(const fs::path& argument, const TriangleMesh& mesh) {
   if (fs::is_directory(argument)) {
     const fs::path truth_path = argument / "scene_gt.ply";
@@ -143,6 +157,14 @@ void takeFromCatalog(Catalog& catalog, const fs::path& catalog_path, std::int64_
   log::debug(scene.name + ": candidates from the catalog");
 }
 
+/// The settings for one scene: `config` with the scene's view up (which only the context reads,
+/// so the catalog's settings key does not change with it).
+DiscoveryConfig configOf(const DiscoveredScene& scene, const DiscoveryConfig& config) {
+  DiscoveryConfig out = config;
+  if (scene.view_up) out.objects.context.view_up = scene.view_up;
+  return out;
+}
+
 /// Candidates and measures of one scene: the catalog's when it knows the mesh with these
 /// settings, else found now (and added to the catalog).
 void findOrRecall(DiscoveredScene& scene, const std::string& content_hash,
@@ -152,7 +174,7 @@ void findOrRecall(DiscoveredScene& scene, const std::string& content_hash,
   if (catalog && !content_hash.empty()) known = catalog->findScene(content_hash, settings);
   if (known && known->vertex_count == scene.mesh.positions.size()) {
     takeFromCatalog(*catalog, *options.catalog, known->id, scene);
-    addContext(scene.mesh, scene.candidates, options.config);
+    addContext(scene.mesh, scene.candidates, configOf(scene, options.config));
     return;
   }
   if (scene.mesh.positions.size() >= kAnnouncedVertices) {
@@ -165,7 +187,7 @@ void findOrRecall(DiscoveredScene& scene, const std::string& content_hash,
                   kSecondsPerVertex * static_cast<double>(scene.mesh.positions.size()));
     log::info(scene.name + line);
   }
-  scene.candidates = findCandidates(scene.mesh, options.config);
+  scene.candidates = findCandidates(scene.mesh, configOf(scene, options.config));
   // Without a catalog entry, an id no catalog scene has (catalog ids start at 1).
   scene.scene_id = catalog ? -1 - index : index;
   if (catalog && !content_hash.empty()) {
@@ -321,6 +343,7 @@ SceneInput sceneFromCloud(std::string name, const OrganizedCloud& cloud, bool la
   }
   SceneInput scene;
   scene.name = std::move(name);
+  scene.view_up = Eigen::Vector3f(0.0f, -1.0f, 0.0f);  // the points are in the camera's frame
   if (labelled) {
     try {
       scene.whole_objects.emplace(wholeObjectIds(mesh.labels));
@@ -358,6 +381,7 @@ SceneInput loadScene(const fs::path& argument, const SceneReading& reading) {
     throw InputError(mesh_path, e.what());
   }
   if (reading.hash) scene.content_hash = contentHash(mesh_path);
+  scene.view_up = viewUpBeside(mesh_path);
   if (reading.labelled) {
     try {
       scene.truth.emplace(groundTruth(argument, scene.mesh));
@@ -431,6 +455,7 @@ SceneDiscovery discoverScenes(std::vector<SceneInput> inputs,
     scene.content_hash = input.content_hash;
     scene.truth = std::move(input.truth);
     scene.whole_objects = std::move(input.whole_objects);
+    scene.view_up = input.view_up;
     findOrRecall(scene, input.content_hash, options, settings, catalog ? &*catalog : nullptr,
                  static_cast<std::int64_t>(run.scenes.size()));
     run.scenes.push_back(std::move(scene));

@@ -2,7 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <optional>
 #include <random>
+
+#include <Eigen/Geometry>
 
 #include "objscan/core/error.h"
 #include "test_support.h"
@@ -66,6 +70,34 @@ TEST(Trajectory, ReadsCommentsBlankLinesCommasAndTumConvention) {
   EXPECT_TRUE(p_W.isApprox(Eigen::Vector3f(1, 3, 3), 1e-6f)) << p_W.transpose();
   EXPECT_DOUBLE_EQ(t.durationS(), 1.5);
   EXPECT_NEAR(t.pathLengthM(), 1.0, 1e-9);
+}
+
+TEST(Trajectory, ViewUpIsTheRoomsUpForACameraTiltedDownAndTurnedAllAround) {
+  // A camera 1.5 m up, tilted 35 degrees down, turned to 12 headings around the room's z (up):
+  // the tilts cancel out, and up in its images is the room's up on average.
+  Trajectory t;
+  for (int i = 0; i < 12; ++i) {
+    const float heading = static_cast<float>(i) * 0.5236f;
+    // Camera frame: x right, y down, z forward; level forward is (cos, sin, 0) in the room.
+    const Eigen::Matrix3f level =
+        (Eigen::Matrix3f() << std::sin(heading), 0.0f, std::cos(heading),  //
+         -std::cos(heading), 0.0f, std::sin(heading),                       //
+         0.0f, -1.0f, 0.0f)
+            .finished();
+    Pose p = Pose::Identity();
+    p.linear() = level * Eigen::AngleAxisf(-0.61f, Eigen::Vector3f::UnitX()).toRotationMatrix();
+    p.translation() = Eigen::Vector3f(0.0f, 0.0f, 1.5f);
+    t.poses.push_back({static_cast<double>(i), p});
+  }
+  const std::optional<Eigen::Vector3f> up = viewUp(t);
+  ASSERT_TRUE(up.has_value());
+  EXPECT_NEAR(up->z(), 1.0f, 1e-5f);
+  // One pose alone (looking along x): its own image up, 35 degrees from the room's, leaning
+  // towards where it looks.
+  t.poses.resize(1);
+  ASSERT_NEAR(t.poses[0].T_W_C.linear().col(2).z(), -std::sin(0.61f), 1e-5f);  // looks down
+  EXPECT_TRUE(viewUp(t)->isApprox(Eigen::Vector3f(std::sin(0.61f), 0.0f, std::cos(0.61f)), 1e-5f));
+  EXPECT_FALSE(viewUp(Trajectory{}).has_value());
 }
 
 TEST(Trajectory, BadFilesGiveErrorsWithLineNumbers) {

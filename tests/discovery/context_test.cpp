@@ -166,6 +166,63 @@ TEST(Context, BadConfigsAndSupportFlagsAreRefused) {
   }
 }
 
+/// A room: the floor (z = 0, 1.6 m square), a table top over its middle (z = kTable, 0.8 m
+/// square, a single sheet) and a wall along its back (y = 0.4, from the table up to 1.05 m,
+/// facing the room). Candidates: a box hung on the wall 35 cm over the table, a 20 cm cube on
+/// the floor under the table (its top 5 cm under the table top: a table's leg) and one on the
+/// floor beside the table.
+Scene room() {
+  Scene s;
+  s.mesh = makeHeightField(161, 0.8f, [](float, float) { return 0.0f; });
+  auto append = [&s](const TriangleMesh& part) {
+    const std::int32_t first = static_cast<std::int32_t>(s.mesh.positions.size());
+    s.mesh.positions.insert(s.mesh.positions.end(), part.positions.begin(), part.positions.end());
+    s.mesh.normals.insert(s.mesh.normals.end(), part.normals.begin(), part.normals.end());
+    for (const Eigen::Vector3i& t : part.triangles) s.mesh.triangles.push_back(t.array() + first);
+  };
+  append(makeHeightField(161, 0.4f, [](float, float) { return kTable; }));
+  TriangleMesh wall = makeHeightField(161, 0.4f, [](float, float) { return 0.0f; });
+  for (std::size_t i = 0; i < wall.positions.size(); ++i) {
+    const Eigen::Vector3f p = wall.positions[i];
+    wall.positions[i] = {p.x(), 0.4f, kTable + 0.4f + p.y()};
+    wall.normals[i] = {0.0f, -1.0f, 0.0f};
+  }
+  append(wall);
+  s.boxes.push_back(describeSegment(s.mesh, addBox(s.mesh, 0.0f, 0.37f, kTable + 0.35f, 0.06f)));
+  s.boxes.push_back(describeSegment(s.mesh, addBox(s.mesh, -0.2f, -0.2f, 0.0f, 0.2f)));
+  s.boxes.push_back(describeSegment(s.mesh, addBox(s.mesh, 0.6f, 0.0f, 0.0f, 0.2f)));
+  return s;
+}
+
+TEST(Context, WithTheCamerasUpABoxOnAWallStandsOnNothingAndATablesLegIsUnderIt) {
+  const Scene s = room();
+  const MeshGraph graph = buildMeshGraph(s.mesh);
+  const Supports supports = findSupports(s.mesh, graph, SupportConfig{}, 3000);
+  ASSERT_EQ(supports.planes.size(), 3u);  // the floor, the table, the wall
+  ContextConfig config;
+  // Without a hint every support holds: the box on the wall stands on it.
+  std::vector<SegmentContext> c = segmentContexts(s.mesh, graph, supports, s.boxes, config);
+  EXPECT_EQ(c[0].footing, Footing::kSupport);
+  EXPECT_EQ(c[1].footing, Footing::kUnder);
+  EXPECT_EQ(c[2].footing, Footing::kSupport);
+  // A camera held upright and tilted 20 degrees down at the wall: up in its images is 20 degrees
+  // from the room's up, towards the wall, whose free side faces 110 degrees from it; the floor and
+  // the table face 20 degrees from it, and are the ground.
+  config.view_up = Eigen::Vector3f(0.0f, std::sin(0.35f), std::cos(0.35f));
+  c = segmentContexts(s.mesh, graph, supports, s.boxes, config);
+  EXPECT_EQ(c[0].footing, Footing::kNone);
+  EXPECT_NEAR(c[0].height_m, 0.35, 1e-3);  // measured from the table under it
+  EXPECT_EQ(c[1].footing, Footing::kUnder);
+  EXPECT_NEAR(c[1].rise_m, 0.2, 1e-3);
+  EXPECT_EQ(c[2].footing, Footing::kSupport);
+  // A camera on its side: no support faces within 60 degrees of its up, and every one holds.
+  config.view_up = Eigen::Vector3f(1.0f, 0.0f, 0.0f);
+  c = segmentContexts(s.mesh, graph, supports, s.boxes, config);
+  EXPECT_EQ(c[0].footing, Footing::kSupport);
+  config.view_up = Eigen::Vector3f::Zero();
+  EXPECT_THROW(config.validate(), std::invalid_argument);
+}
+
 /// The three boxes as candidates, with the same measures each, plus the two lower ones as one
 /// candidate (a coarser scale's segment) that scores best.
 SceneCandidates candidatesOf(const Scene& s) {

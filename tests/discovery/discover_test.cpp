@@ -4,10 +4,15 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <stdexcept>
 #include <set>
 #include <vector>
 
+#include <Eigen/Geometry>
+
+#include "objscan/core/ply_io.h"
+#include "objscan/core/trajectory.h"
 #include "objscan/discovery/discover.h"
 #include "objscan/discovery/scenes.h"
 #include "objscan/discovery/segmentation.h"
@@ -244,6 +249,25 @@ TEST(Discover, ABareTableHasNoCandidatesAndAMeshWithoutNormalsGetsThemComputed) 
   ASSERT_FALSE(a.empty());
   for (std::size_t i = 0; i < a.size(); ++i)
     EXPECT_EQ(a[i].segment.vertices, b[i].segment.vertices);
+}
+
+TEST(Discover, AMeshsViewUpComesFromTheCameraPathBesideIt) {
+  const testing::TempDir dir;
+  writePly(dir / "mesh.ply", table(true));
+  EXPECT_FALSE(loadScene(dir / "mesh.ply").view_up.has_value());
+  // One camera at the origin, tilted 30 degrees down about its x axis.
+  Trajectory path;
+  Pose pose = Pose::Identity();
+  pose.linear() = Eigen::AngleAxisf(-0.5236f, Eigen::Vector3f::UnitX()).toRotationMatrix();
+  path.poses.push_back({1.0, pose});
+  writeTumTrajectory(dir / "trajectory.txt", path);
+  const std::optional<Eigen::Vector3f> up = loadScene(dir.path()).view_up;  // the folder holds mesh.ply
+  ASSERT_TRUE(up.has_value());
+  EXPECT_TRUE(up->isApprox(Eigen::Vector3f(0.0f, -std::cos(0.5236f), std::sin(0.5236f)), 1e-5f))
+      << up->transpose();
+  // A camera path that does not read leaves the up unknown (with a warning), not the scene.
+  testing::writeBytes(dir / "trajectory.txt", "1.0 0 0 nan\n");
+  EXPECT_FALSE(loadScene(dir / "mesh.ply").view_up.has_value());
 }
 
 TEST(Discover, TheSettingsKeyChangesWithTheColourCuts) {

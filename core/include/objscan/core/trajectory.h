@@ -6,6 +6,8 @@
 #include <optional>
 #include <vector>
 
+#include <Eigen/Core>
+
 #include "objscan/core/pose.h"
 
 namespace objscan {
@@ -45,6 +47,12 @@ Trajectory readTumTrajectory(const std::filesystem::path& path);
 /// Throws OutputError, or std::invalid_argument (nothing written) when the time stamps go
 /// backwards, which readTumTrajectory would refuse.
 void writeTumTrajectory(const std::filesystem::path& path, const Trajectory& trajectory);
+
+/// Which way was up for the camera along `trajectory`, in its world frame: the mean over its poses
+/// of the camera's -y (up in its images), normalised. People hold a camera upright and tilt it
+/// down at what they scan, so this lies within the camera's tilt of gravity's up (a hint, not a
+/// measurement). Nothing for an empty trajectory or when the poses' ups cancel out.
+std::optional<Eigen::Vector3f> viewUp(const Trajectory& trajectory);
 
 /// The pose nearest in time to stamp_s, if one lies within max_dt_s (poses in time order).
 std::optional<Pose> nearestPose(const Trajectory& trajectory, double stamp_s, double max_dt_s);

@@ -3,7 +3,10 @@
 #include <cstddef>
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <vector>
+
+#include <Eigen/Core>
 
 #include "objscan/core/triangle_mesh.h"
 #include "objscan/discovery/mesh_graph.h"
@@ -24,8 +27,10 @@ enum class Footing : std::uint8_t {
   kOnSurface,
   /// it lies on a support but rises no more than the support's noise: a patch of the table
   kPatch,
+  /// it stands on a support and reaches up to another one over it: a table's leg, a shelf's side
+  kUnder,
 };
-/// "none", "support", "surface", "patch".
+/// "none", "support", "surface", "patch", "under".
 const char* toString(Footing footing);
 
 struct ContextConfig {
@@ -43,6 +48,17 @@ struct ContextConfig {
   /// patch of the support.
   double min_rise_noises = 3.0;
   double min_rise_m = 0.01;
+
+  /// Which way was up for the camera, in the mesh's frame: a hint for gravity. discoverScenes sets
+  /// it per scene from SceneInput::view_up. With it, the support plane that faces up (the one whose
+  /// free side lies nearest the hint, within `up_hint_deg`) is the ground, and only the supports
+  /// level with it (their free sides within `level_deg` of its) hold candidates up: a table, a
+  /// shelf board, the floor; a fragment on a wall or a cupboard's front stands on nothing. Without
+  /// the hint, or with no support near it (a camera looking straight down, or at a wall), every
+  /// support holds.
+  std::optional<Eigen::Vector3f> view_up;
+  float up_hint_deg = 60.0f;
+  float level_deg = 25.0f;
 
   /// Throws std::invalid_argument naming the first bad field.
   void validate() const;

@@ -35,6 +35,9 @@ struct SceneInput {
   /// Where the truth has objects made of parts (a PCD's labels 10 k + p): each object whole,
   /// reported beside the parts.
   std::optional<GroundTruthObjects> whole_objects;
+  /// Which way was up for the camera, in the mesh's frame (ContextConfig::view_up): a single
+  /// view's -y, a fused scan's viewUp of its trajectory; nothing when unknown.
+  std::optional<Eigen::Vector3f> view_up;
 };
 
 /// How loadScene reads a scene.
@@ -60,7 +63,9 @@ void requireMemoryFor(const std::vector<SceneInput>& inputs);
 
 /// Reads a scene as the command line names it: a mesh file (.ply), a folder holding
 /// fused/mesh.ply or mesh.ply, or a camera's point cloud (.pcd, organized or put back on its
-/// pixel grid), meshed by joining neighbouring pixels (meshOrganized). Throws InputError naming
+/// pixel grid), meshed by joining neighbouring pixels (meshOrganized). A mesh's view up comes from
+/// the camera path objscan writes beside it (trajectory.txt, TUM format), when there is one and
+/// it reads; a cloud's is its camera's -y. Throws InputError naming
 /// the file for a scene that cannot be used (missing, truncated, corrupt, empty, no faces, NaN,
 /// an unorganized cloud with no camera that fits it, ...) or a labelled scene without labels.
 SceneInput loadScene(const std::filesystem::path& argument, const SceneReading& reading = {});
@@ -109,6 +114,7 @@ struct DiscoveredScene {
   std::int64_t scene_id = 0;   ///< in the catalog, or the scene's index without one
   std::optional<GroundTruthObjects> truth;          ///< labelled runs only
   std::optional<GroundTruthObjects> whole_objects;  ///< SceneInput::whole_objects
+  std::optional<Eigen::Vector3f> view_up;           ///< SceneInput::view_up
   std::size_t hypotheses = 0;  ///< how many of SceneDiscovery::ranked are this scene's
 };
 
