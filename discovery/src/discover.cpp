@@ -359,9 +359,12 @@ std::vector<Hypothesis> rankObjects(const TriangleMesh& mesh, const SceneCandida
   const double evidence = static_cast<double>(candidates.effective.evidence_vertices);
   std::vector<double> object_scores(n);
   for (std::size_t i = 0; i < n; ++i) {
-    const double count = static_cast<double>(candidates.segments[i].vertices.size());
-    const double f = evidence > 0.0 ? count / (count + evidence) : 1.0;
     const SegmentContext& c = candidates.context[i];
+    double count = static_cast<double>(candidates.segments[i].vertices.size());
+    if (config.objects.weigh_by_observation && std::isfinite(c.observation)) {
+      count = std::max(1.0, count * std::min(1.0, c.observation));
+    }
+    const double f = evidence > 0.0 ? count / (count + evidence) : 1.0;
     // A patch of a support stands on nothing of its own, and what reaches up to a support is
     // part of what holds it: they pay what a floating one does.
     const double penalty = c.footing == Footing::kSupport    ? 0.0

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <set>
+#include <utility>
 #include <vector>
 
 #include "objscan/discovery/context.h"
@@ -330,6 +331,37 @@ TEST(ObjectSet, FewVerticesDrawAPositiveScoreDownAndANegativeOneFurtherDown) {
     EXPECT_NEAR(ranked[0].object_score, (score > 0 ? score * f : score / f), 1e-9) << score;
     EXPECT_LT(ranked[0].object_score, score);
   }
+}
+
+TEST(ObjectSet, ACandidateSeenRarelyCountsItsVerticesByHowOftenTheyWereSeen) {
+  const Scene s = tableWithBoxes();
+  SceneCandidates candidates = candidatesOf(s);
+  candidates.segments.resize(1);
+  candidates.context.resize(1);
+  candidates.measures.resize(1);
+  MeasureNormaliser normaliser;
+  normaliser.sd[0] = 0.1;
+  DiscoveryConfig config;
+  const double n = static_cast<double>(s.boxes[0].vertices.size());  // 600
+  auto objectScore = [&](double observation) {
+    candidates.context[0].observation = observation;
+    const std::vector<Hypothesis> ranked =
+        rankObjects(s.mesh, candidates, ObjectnessModel::average(normaliser), config);
+    return std::pair(ranked.at(0).score, ranked.at(0).object_score);
+  };
+  // Seen as often as the scene's typical surface, or more, or with no weights (a single view):
+  // every vertex counts.
+  for (const double observation : {1.0, 3.0, std::nan("")}) {
+    const auto [score, object_score] = objectScore(observation);
+    EXPECT_NEAR(object_score, score * n / (n + 100), 1e-9) << observation;
+  }
+  // A tenth as often: 60 vertices' worth of evidence. Never seen: one vertex's, not a division
+  // by zero.
+  const auto [score, tenth] = objectScore(0.1);
+  EXPECT_NEAR(tenth, score * 60 / 160, 1e-9);
+  EXPECT_NEAR(objectScore(0.0).second, score * 1 / 101, 1e-9);
+  config.objects.weigh_by_observation = false;
+  EXPECT_NEAR(objectScore(0.1).second, score * n / (n + 100), 1e-9);
 }
 
 TEST(ObjectSet, ACandidateAllTakenIsLeftOutAndOneBarelyTakenLosesTheTakenVertices) {

@@ -37,14 +37,19 @@ struct ObjectSetConfig {
   /// vertices, a few noise lengths across, say little, so it ranks lower either way. Vertices at
   /// the reference density (scaled as min_size is).
   std::size_t evidence_vertices = 100;
+  /// On a fused mesh (SegmentContext::observation known), n counts each vertex by how well it was
+  /// seen: n times min(1, observation), so a fragment seen a tenth as often as the scene's typical
+  /// surface (the edge of the scan, a glimpse through a gap) is a tenth of the evidence. Off:
+  /// vertices count alike.
+  bool weigh_by_observation = true;
   /// Plus this weight times ln(share of its region) (SegmentContext::share_of_region, at least
   /// 0.001): a fragment of something larger (a leaf of a plant, the base of a lamp) scores lower
   /// than a whole thing standing alone (with weight 0.1: -0.23 for a tenth of its region, -0.46
   /// for a hundredth).
   double region_share_weight = 0.1;
   /// Less these, in the score's units, for a candidate that stands on another surface rather
-  /// than a support (Footing::kOnSurface), and for one that stands on nothing or is a patch of a
-  /// support (Footing::kNone, kPatch).
+  /// than a support (Footing::kOnSurface), and for one that stands on nothing, is a patch of a
+  /// support or reaches up to one (Footing::kNone, kPatch, kUnder).
   double on_surface_penalty = 0.3;
   double floating_penalty = 0.6;
   /// The share of a candidate's vertices that objects before it may already hold.
