@@ -304,6 +304,24 @@ void addSceneReading(CLI::App* sub, discovery::SceneReading& reading) {
       },
       "intrinsics.json of the camera: of unorganized PCD scenes (default: the pinhole that fits "
       "their points), or replacing the source's with --frame");
+  sub->add_option_function<std::string>(
+         "--up",
+         [&reading](const std::string& text) {
+           float x = 0, y = 0, z = 0;
+           char extra = 0;
+           if (std::sscanf(text.c_str(), "%f,%f,%f%c", &x, &y, &z, &extra) != 3) {
+             throw CLI::ValidationError("--up", "expected three numbers X,Y,Z, e.g. 0,0,1");
+           }
+           const Eigen::Vector3f up(x, y, z);
+           if (!up.allFinite() || !(up.norm() > 0.0f)) {
+             throw CLI::ValidationError("--up", "the direction must be finite and not zero");
+           }
+           reading.view_up = up.normalized();
+         },
+         "Which way is up in the scenes' frame, X,Y,Z (default: a PCD's camera -y, or the camera "
+         "path objscan writes beside a mesh, trajectory.txt); supports that do not face it hold "
+         "nothing up (docs/discovery.md)")
+      ->type_name("X,Y,Z");
 }
 
 void addPictureOptions(CLI::App* sub, pipeline::PictureOptions& o) {

@@ -47,16 +47,18 @@ std::vector<UpPlane> orientedPlanes(const TriangleMesh& mesh, const Supports& su
 
 float cosOfDegrees(float degrees) { return std::cos(degrees * std::numbers::pi_v<float> / 180.0f); }
 
-/// The ground among `planes`: the one whose free side lies nearest the camera's up (within
-/// `up_hint_deg`); -1 without a hint or with none near it.
-int groundPlane(const std::vector<UpPlane>& planes, const ContextConfig& config) {
+/// The ground among `planes` (supports' `planes`, turned): the largest whose free side lies
+/// within `up_hint_deg` of the camera's up (a small slope nearer the hint does not outvote the
+/// floor or the table); -1 without a hint or with none near it.
+int groundPlane(const std::vector<UpPlane>& planes, const std::vector<SupportPlane>& supports,
+                const ContextConfig& config) {
   if (!config.view_up) return -1;
   const Eigen::Vector3f hint = config.view_up->normalized();
+  const float min_cos = cosOfDegrees(config.up_hint_deg);
   int ground = -1;
-  float best = cosOfDegrees(config.up_hint_deg);
   for (std::size_t k = 0; k < planes.size(); ++k) {
-    if (const float c = planes[k].up.dot(hint); c >= best) {
-      best = c;
+    if (planes[k].up.dot(hint) < min_cos) continue;
+    if (ground < 0 || supports[k].vertex_count > supports[static_cast<std::size_t>(ground)].vertex_count) {
       ground = static_cast<int>(k);
     }
   }
@@ -183,12 +185,13 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
   const std::vector<UpPlane> planes = orientedPlanes(mesh, supports);
   // The planes that hold candidates up: those level with the ground when the camera's up finds
   // one, else all.
-  const int ground = groundPlane(planes, config);
+  const int ground = groundPlane(planes, supports.planes, config);
   std::vector<bool> holds(planes.size(), true);
   if (ground >= 0) {
     const float min_level_cos = cosOfDegrees(config.level_deg);
     for (std::size_t k = 0; k < planes.size(); ++k) {
-      holds[k] = planes[k].up.dot(planes[static_cast<std::size_t>(ground)].up) >= min_level_cos;
+      holds[k] = static_cast<int>(k) == ground ||
+                 planes[k].up.dot(planes[static_cast<std::size_t>(ground)].up) >= min_level_cos;
     }
   }
 
@@ -231,7 +234,8 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
   const PointIndex support_index(support_points);
 
   // Whether a candidate standing on plane `k` reaches up to another holding plane over it: its
-  // top within kUnderM under that plane, which covers it.
+  // top within kUnderM under that plane, which covers it (the plane's own surface, facing as it
+  // does: not a wall's vertices or a fold near that height).
   auto reachesUp = [&](const Segment& s, std::size_t k) {
     std::vector<std::pair<std::uint32_t, float>> near;
     for (std::size_t j = 0; j < planes.size(); ++j) {
@@ -247,7 +251,10 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
         const Eigen::Vector3f& p = mesh.positions[static_cast<std::size_t>(crown[f])];
         support_index.within(p - planes[j].height(p) * planes[j].up, kCoverM, &near);
         for (const auto& [point, distance_sq] : near) {
-          if (std::abs(planes[j].height(support_points[point])) <= kOwnSurfaceM) return true;
+          if (std::abs(planes[j].height(support_points[point])) <= kOwnSurfaceM &&
+              planes[j].up.dot(mesh.normals[support_vertex[point]]) >= min_cos) {
+            return true;
+          }
         }
       }
     }
@@ -361,7 +368,8 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
   // table, the floor, a shelf board): a candidate's own lowest plane may be the wall it leans on.
   std::vector<std::size_t> standing(planes.size(), 0);
   for (std::size_t i = 0; i < segments.size(); ++i) {
-    if (out[i].footing == Footing::kSupport || out[i].footing == Footing::kPatch) {
+    if (out[i].footing == Footing::kSupport || out[i].footing == Footing::kPatch ||
+        out[i].footing == Footing::kUnder) {
       ++standing[static_cast<std::size_t>(lowest[i].plane)];
     }
   }

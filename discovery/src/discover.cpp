@@ -161,7 +161,8 @@ std::string settingsKey(const DiscoveryConfig& c) {
   if (c.supports.enabled) {
     s << " supports " << c.supports.distance_m << ' ' << c.supports.max_angle_deg << ' '
       << c.supports.min_vertices << ' ' << c.supports.max_planes << ' '
-      << c.supports.ransac_iterations << ' ' << c.supports.min_cut_off_size << " folds";
+      << c.supports.ransac_iterations << ' ' << c.supports.min_cut_off_size
+      << " folds one-vertex";  // the planes' RANSAC draws one vertex with its normal
   }
   if (c.convexity.enabled) {
     s << " convexity";

@@ -87,7 +87,9 @@ std::optional<Eigen::Vector3f> viewUpBeside(const fs::path& mesh_path) {
   const fs::path path = mesh_path.parent_path() / "trajectory.txt";
   if (!fs::is_regular_file(path)) return std::nullopt;
   try {
-    return viewUp(readTumTrajectory(path));
+    const std::optional<Eigen::Vector3f> up = viewUp(readTumTrajectory(path));
+    if (up) log::debug(mesh_path.string() + ": up from " + path.string());
+    return up;
   } catch (const InputError& e) {
     log::warning(std::string(e.what()) + "; the scene's up is taken as unknown");
     return std::nullopt;
@@ -369,6 +371,7 @@ SceneInput loadScene(const fs::path& argument, const SceneReading& reading) {
         sceneFromCloud(argument.string(), organizedCloudOf(argument, reading.intrinsics),
                        reading.labelled, reading.meshing);
     if (reading.hash) scene.content_hash = contentHash(argument);
+    if (reading.view_up) scene.view_up = reading.view_up;
     return scene;
   }
   SceneInput scene;
@@ -381,7 +384,7 @@ SceneInput loadScene(const fs::path& argument, const SceneReading& reading) {
     throw InputError(mesh_path, e.what());
   }
   if (reading.hash) scene.content_hash = contentHash(mesh_path);
-  scene.view_up = viewUpBeside(mesh_path);
+  scene.view_up = reading.view_up ? reading.view_up : viewUpBeside(mesh_path);
   if (reading.labelled) {
     try {
       scene.truth.emplace(groundTruth(argument, scene.mesh));

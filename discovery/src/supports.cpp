@@ -51,8 +51,9 @@ PlaneHypothesis bestPlane(const TriangleMesh& mesh, const pcl::Indices& sample, 
     std::size_t support = 0;
     for (const pcl::index_t i : sample) {
       const auto u = static_cast<std::size_t>(i);
-      support += std::abs(normal.dot(mesh.positions[u]) + offset) <= distance &&
-                 std::abs(normal.dot(mesh.normals[u])) >= min_cos * mesh.normals[u].norm();
+      const float n = mesh.normals[u].norm();  // 0 for a vertex without a normal: never agrees
+      support += n > 0.0f && std::abs(normal.dot(mesh.positions[u]) + offset) <= distance &&
+                 std::abs(normal.dot(mesh.normals[u])) >= min_cos * n;
     }
     if (support > best.support) best = {normal, offset, support};
   }

@@ -125,7 +125,10 @@ discovery::SceneInput readScene(const std::filesystem::path& argument,
   SourceOptions source;
   source.intrinsics = reading.intrinsics;
   source.intrinsics_origin = reading.intrinsics_origin;
-  return sceneOfFrame(argument.string(), *frame, source, reading.meshing, reading.hash);
+  discovery::SceneInput scene =
+      sceneOfFrame(argument.string(), *frame, source, reading.meshing, reading.hash);
+  if (reading.view_up) scene.view_up = reading.view_up;
+  return scene;
 }
 
 }  // namespace objscan::pipeline

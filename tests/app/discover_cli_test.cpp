@@ -98,8 +98,10 @@ TEST(DiscoverCli, RanksBothMoundsFirstAndWritesEachHypothesisMesh) {
   TempDir dir;
   const TriangleMesh mesh = twoMounds();
   writePly(dir / "scene.ply", mesh);
+  // Up given as the table's: the same mounds as without (the table is the ground either way).
   const ProcessResult r = objscan({"discover", (dir / "scene.ply").string(), "--out",
-                                   (dir / "out").string(), "--no-catalog", "--timings"});
+                                   (dir / "out").string(), "--no-catalog", "--timings", "--up",
+                                   "0,0,2"});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("time          "), std::string::npos) << r.out;
   const nlohmann::json doc = readJson(dir / "out" / "hypotheses.json");
@@ -442,6 +444,11 @@ TEST(DiscoverCli, BadInputGivesOneErrorLine) {
   expectOneErrorLine(objscan({"discover", (dir / "good.ply").string(), "--out", out, "--no-catalog",
                               "--model", (dir / "model.yml").string()}),
                      2, "model.yml: an objscan model in the old YAML form");
+  for (const char* up : {"0,0", "0,0,0", "nan,0,1", "0,0,1,2", "up"}) {
+    expectOneErrorLine(objscan({"discover", (dir / "good.ply").string(), "--out", out,
+                                "--no-catalog", "--up", up}),
+                       2, "--up");
+  }
   // The corrupt catalog is left as it was.
   EXPECT_EQ(readWholeFile(dir / "corrupt.sqlite"), std::string(4096, 'x'));
 }

@@ -170,8 +170,8 @@ TEST(Context, BadConfigsAndSupportFlagsAreRefused) {
 /// A room: the floor (z = 0, 1.6 m square), a table top over its middle (z = kTable, 0.8 m
 /// square, a single sheet) and a wall along its back (y = 0.4, from the table up to 1.05 m,
 /// facing the room). Candidates: a box hung on the wall 35 cm over the table, a 20 cm cube on
-/// the floor under the table (its top 5 cm under the table top: a table's leg) and one on the
-/// floor beside the table.
+/// the floor under the table (its top 5 cm under the table top: a table's leg), one on the
+/// floor beside the table, and a 6 cm cube on the floor under the table.
 Scene room() {
   Scene s;
   s.mesh = makeHeightField(161, 0.8f, [](float, float) { return 0.0f; });
@@ -192,6 +192,8 @@ Scene room() {
   s.boxes.push_back(describeSegment(s.mesh, addBox(s.mesh, 0.0f, 0.37f, kTable + 0.35f, 0.06f)));
   s.boxes.push_back(describeSegment(s.mesh, addBox(s.mesh, -0.2f, -0.2f, 0.0f, 0.2f)));
   s.boxes.push_back(describeSegment(s.mesh, addBox(s.mesh, 0.6f, 0.0f, 0.0f, 0.2f)));
+  // A 6 cm cube on the floor under the table: its top 19 cm under it, an object, not a leg.
+  s.boxes.push_back(describeSegment(s.mesh, addBox(s.mesh, 0.2f, -0.2f, 0.0f, 0.06f)));
   return s;
 }
 
@@ -215,7 +217,8 @@ TEST(Context, WithTheCamerasUpABoxOnAWallStandsOnNothingAndATablesLegIsUnderIt) 
   EXPECT_NEAR(c[0].height_m, 0.35, 1e-3);  // measured from the table under it
   EXPECT_EQ(c[1].footing, Footing::kUnder);
   EXPECT_NEAR(c[1].rise_m, 0.2, 1e-3);
-  EXPECT_EQ(c[2].footing, Footing::kSupport);
+  EXPECT_EQ(c[2].footing, Footing::kSupport);  // nothing over it
+  EXPECT_EQ(c[3].footing, Footing::kSupport);  // too far under the table
   // A camera on its side: no support faces within 60 degrees of its up, and every one holds.
   config.view_up = Eigen::Vector3f(1.0f, 0.0f, 0.0f);
   c = segmentContexts(s.mesh, graph, supports, s.boxes, config);

@@ -27,7 +27,8 @@ enum class Footing : std::uint8_t {
   kOnSurface,
   /// it lies on a support but rises no more than the support's noise: a patch of the table
   kPatch,
-  /// it stands on a support and reaches up to another one over it: a table's leg, a shelf's side
+  /// it stands on a support and its top reaches to within 15 cm under another one that covers
+  /// it: a table's leg, a shelf's side
   kUnder,
 };
 /// "none", "support", "surface", "patch", "under".
@@ -50,14 +51,18 @@ struct ContextConfig {
   double min_rise_m = 0.01;
 
   /// Which way was up for the camera, in the mesh's frame: a hint for gravity. discoverScenes sets
-  /// it per scene from SceneInput::view_up. With it, the support plane that faces up (the one whose
-  /// free side lies nearest the hint, within `up_hint_deg`) is the ground, and only the supports
+  /// it per scene from SceneInput::view_up. With it, the support plane that faces up (the largest
+  /// whose free side lies within `up_hint_deg` of the hint) is the ground, and only the supports
   /// level with it (their free sides within `level_deg` of its) hold candidates up: a table, a
   /// shelf board, the floor; a fragment on a wall or a cupboard's front stands on nothing. Without
   /// the hint, or with no support near it (a camera looking straight down, or at a wall), every
   /// support holds.
   std::optional<Eigen::Vector3f> view_up;
+  /// The ground is the largest support whose free side lies within this angle of the hint (a
+  /// camera tilted down less than 60 degrees finds the floor or the table; its walls face it at
+  /// 90 degrees or more).
   float up_hint_deg = 60.0f;
+  /// The supports whose free sides lie within this angle of the ground's hold candidates up.
   float level_deg = 25.0f;
 
   /// Throws std::invalid_argument naming the first bad field.

@@ -53,6 +53,10 @@ struct SceneReading {
   std::string intrinsics_origin;  ///< where `intrinsics` came from (a file), for messages
   /// How a PCD's pixels are joined into a mesh.
   OrganizedMeshConfig meshing;
+  /// Which way is up in the scene's frame (`--up`), replacing what the scene says (its camera's
+  /// -y, or the view up of the camera path beside a mesh): for a mesh from another tool, in a
+  /// frame whose up the user knows.
+  std::optional<Eigen::Vector3f> view_up;
 };
 
 /// Throws std::runtime_error, with the estimate, the memory free and what to change, when

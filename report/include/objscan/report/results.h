@@ -53,8 +53,8 @@ struct HypothesisRecord {
   std::optional<double> objectScoreIfObject() const {
     return object_rank.value_or(0) > 0 ? object_score : std::nullopt;
   }
-  /// Its context (discovery::SegmentContext): how it stands ("support", "surface", "patch" or
-  /// "none"; empty when unknown), the height of its lowest point over the support plane under
+  /// Its context (discovery::SegmentContext): how it stands ("support", "surface", "patch",
+  /// "under" or "none"; empty when unknown), the height of its lowest point over the support plane under
   /// it, its share of its region off the supports, how well fusion saw it, and for one on a
   /// support how far it rises over it and the support's noise there.
   std::string footing;
