@@ -315,14 +315,26 @@ TEST(ObjectSet, AStandingBoxOutranksAFloatingOneThatScoresALittleBetter) {
   EXPECT_TRUE(std::isnan(paper[0].object_score));
 }
 
-TEST(ObjectSet, FewVerticesDrawAPositiveScoreDownAndANegativeOneFurtherDown) {
-  const Scene s = tableWithBoxes();
+/// The standing box as the only candidate.
+SceneCandidates standingBoxAlone(const Scene& s) {
   SceneCandidates candidates = candidatesOf(s);
   candidates.segments.resize(1);
   candidates.context.resize(1);
   candidates.measures.resize(1);
+  return candidates;
+}
+
+/// A normaliser under which compactness alone (spread 0.1) scores a candidate.
+MeasureNormaliser compactnessOnly() {
   MeasureNormaliser normaliser;
   normaliser.sd[0] = 0.1;
+  return normaliser;
+}
+
+TEST(ObjectSet, FewVerticesDrawAPositiveScoreDownAndANegativeOneFurtherDown) {
+  const Scene s = tableWithBoxes();
+  SceneCandidates candidates = standingBoxAlone(s);
+  const MeasureNormaliser normaliser = compactnessOnly();
   DiscoveryConfig config;
   const double n = static_cast<double>(s.boxes[0].vertices.size()), f = n / (n + 100);
   for (const double compactness : {0.5, -0.5}) {
@@ -338,12 +350,8 @@ TEST(ObjectSet, FewVerticesDrawAPositiveScoreDownAndANegativeOneFurtherDown) {
 
 TEST(ObjectSet, ACandidateSeenRarelyCountsItsVerticesByHowOftenTheyWereSeen) {
   const Scene s = tableWithBoxes();
-  SceneCandidates candidates = candidatesOf(s);
-  candidates.segments.resize(1);
-  candidates.context.resize(1);
-  candidates.measures.resize(1);
-  MeasureNormaliser normaliser;
-  normaliser.sd[0] = 0.1;
+  SceneCandidates candidates = standingBoxAlone(s);
+  const MeasureNormaliser normaliser = compactnessOnly();
   DiscoveryConfig config;
   const double n = static_cast<double>(s.boxes[0].vertices.size());  // 600
   auto objectScore = [&](double observation) {
