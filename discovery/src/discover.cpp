@@ -6,6 +6,7 @@
 #include <cmath>
 #include <ctime>
 #include <iomanip>
+#include <numbers>
 #include <numeric>
 #include <sstream>
 #include <stdexcept>
@@ -163,6 +164,10 @@ std::string settingsKey(const DiscoveryConfig& c) {
       << c.supports.min_vertices << ' ' << c.supports.max_planes << ' '
       << c.supports.ransac_iterations << ' ' << c.supports.min_cut_off_size
       << " folds one-vertex";  // the planes' RANSAC draws one vertex with its normal
+    if (c.supports.trim_feet) {
+      s << " feet " << c.supports.foot_fold_m << ' ' << c.supports.foot_fold_deg << ' '
+        << c.supports.foot_trim_vertices;
+    }
   }
   if (c.convexity.enabled) {
     s << " convexity";
@@ -182,7 +187,7 @@ std::string settingsKey(const DiscoveryConfig& c) {
 EffectiveScales effectiveScales(const MeshGraph& graph, const TriangleMesh& mesh,
                                 const DiscoveryConfig& config) {
   EffectiveScales e{config.scales, config.min_size, config.supports.min_vertices, 0,
-                    config.objects.evidence_vertices, 0.0};
+                    config.objects.evidence_vertices, config.supports.foot_trim_vertices, 0.0};
   std::size_t cut_off_size = config.supports.min_cut_off_size;
   if (!graph.edges.empty()) {
     std::vector<float> lengths(graph.edges.size());
@@ -205,6 +210,7 @@ EffectiveScales effectiveScales(const MeshGraph& graph, const TriangleMesh& mesh
                               ? 0
                               : scaled(config.objects.evidence_vertices);
     e.support_min_vertices = scaled(config.supports.min_vertices);
+    e.foot_trim_vertices = scaled(config.supports.foot_trim_vertices);
     cut_off_size = scaled(cut_off_size);
   }
   e.candidate_min_size = config.supports.enabled ? std::min(e.min_size, cut_off_size) : e.min_size;
@@ -235,6 +241,40 @@ Supports supportsOf(const TriangleMesh& mesh, const MeshGraph& graph,
 }
 
 }  // namespace
+
+/// Appends to `segments` each small one standing on a support again without its foot
+/// (SupportConfig::trim_feet), when what is left passes the filter.
+void appendTrimmedFeet(const TriangleMesh& mesh, const Supports& supports,
+                       const DiscoveryConfig& config, const EffectiveScales& effective,
+                       std::vector<Segment>& segments) {
+  if (!config.supports.enabled || !config.supports.trim_feet || supports.planes.empty()) return;
+  const float min_cos =
+      std::cos(config.supports.foot_fold_deg * std::numbers::pi_v<float> / 180.0f);
+  const auto inFold = [&](std::int32_t v) {
+    const Eigen::Vector3f& p = mesh.positions[static_cast<std::size_t>(v)];
+    const Eigen::Vector3f& n = mesh.normals[static_cast<std::size_t>(v)];
+    for (const SupportPlane& plane : supports.planes) {
+      if (std::abs(plane.normal.dot(p) + plane.offset) <= config.supports.foot_fold_m &&
+          std::abs(plane.normal.dot(n)) >= min_cos * n.norm()) {
+        return true;
+      }
+    }
+    return false;
+  };
+  const std::size_t count = segments.size();
+  for (std::size_t i = 0; i < count; ++i) {
+    const Segment& s = segments[i];
+    if (s.vertices.size() > effective.foot_trim_vertices) continue;
+    std::vector<std::int32_t> kept;
+    for (std::int32_t v : s.vertices) {
+      if (!inFold(v)) kept.push_back(v);
+    }
+    const std::size_t removed = s.vertices.size() - kept.size();
+    if (10 * removed < s.vertices.size() || kept.size() < effective.candidate_min_size) continue;
+    Segment trimmed = describeSegment(mesh, std::move(kept), s.scale);
+    if (!rejection(trimmed, config.filter)) segments.push_back(std::move(trimmed));
+  }
+}
 
 SceneCandidates findCandidates(const TriangleMesh& mesh, const DiscoveryConfig& config) {
   config.validate();
@@ -267,6 +307,7 @@ SceneCandidates findCandidates(const TriangleMesh& mesh, const DiscoveryConfig& 
 
   out.segments =
       candidateSegments(mesh, segmentations, effective.candidate_min_size, config.filter);
+  appendTrimmedFeet(mesh, supports, config, effective, out.segments);
   t.candidate_count = out.segments.size();
   // A segment that several scales produce is one candidate: repeats would count twice in the
   // normalisation, in the catalog and among a segment's most similar ones for recurrence.

@@ -160,10 +160,12 @@ void takeFromCatalog(Catalog& catalog, const fs::path& catalog_path, std::int64_
 }
 
 /// The settings for one scene: `config` with the scene's view up (which only the context reads,
-/// so the catalog's settings key does not change with it).
+/// so the catalog's settings key does not change with it), and no trimmed feet for a single view
+/// (a scene is always one or the other, so the key still names its candidates).
 DiscoveryConfig configOf(const DiscoveredScene& scene, const DiscoveryConfig& config) {
   DiscoveryConfig out = config;
   if (scene.view_up) out.objects.context.view_up = scene.view_up;
+  if (scene.single_view) out.supports.trim_feet = false;
   return out;
 }
 
@@ -346,6 +348,7 @@ SceneInput sceneFromCloud(std::string name, const OrganizedCloud& cloud, bool la
   SceneInput scene;
   scene.name = std::move(name);
   scene.view_up = Eigen::Vector3f(0.0f, -1.0f, 0.0f);  // the points are in the camera's frame
+  scene.single_view = true;
   if (labelled) {
     try {
       scene.whole_objects.emplace(wholeObjectIds(mesh.labels));
@@ -459,6 +462,7 @@ SceneDiscovery discoverScenes(std::vector<SceneInput> inputs,
     scene.truth = std::move(input.truth);
     scene.whole_objects = std::move(input.whole_objects);
     scene.view_up = input.view_up;
+    scene.single_view = input.single_view;
     findOrRecall(scene, input.content_hash, options, settings, catalog ? &*catalog : nullptr,
                  static_cast<std::int64_t>(run.scenes.size()));
     run.scenes.push_back(std::move(scene));

@@ -207,9 +207,12 @@ std::vector<std::size_t> suppressOverlaps(const std::vector<Segment>& segments,
     bool overlaps = false;
     for (std::size_t k : kept) {
       const Segment& t = segments[k];
-      // Disjoint index ranges share no vertex: skip the merge walk.
+      // Disjoint index ranges share no vertex: skip the merge walk. Nor can two segments whose
+      // sizes differ by more than max_iou overlap by more: IoU <= smaller / larger.
       if (s.vertices.back() < t.vertices.front() || t.vertices.back() < s.vertices.front())
         continue;
+      const auto [smaller, larger] = std::minmax(s.vertices.size(), t.vertices.size());
+      if (static_cast<double>(smaller) <= max_iou * static_cast<double>(larger)) continue;
       if (vertexIoU(s.vertices, t.vertices) > max_iou) {
         overlaps = true;
         break;

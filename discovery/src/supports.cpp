@@ -71,6 +71,10 @@ void SupportConfig::validate() const {
   }
   if (min_vertices < 3) throw std::invalid_argument("a support needs at least 3 vertices");
   if (min_cut_off_size < 1) throw std::invalid_argument("min_cut_off_size must be at least 1");
+  if (!(foot_fold_m >= 0.0f) || !std::isfinite(foot_fold_m) ||
+      !(foot_fold_deg >= 0.0f && foot_fold_deg <= 90.0f)) {
+    throw std::invalid_argument("the foot's fold must be a distance >= 0 and an angle in [0, 90]");
+  }
   if (max_planes < 0 || ransac_iterations < 1) {
     throw std::invalid_argument("supports need max_planes >= 0 and at least 1 RANSAC iteration");
   }

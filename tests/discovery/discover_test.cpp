@@ -270,6 +270,61 @@ TEST(Discover, AMeshsViewUpComesFromTheCameraPathBesideIt) {
   EXPECT_FALSE(loadScene(dir / "mesh.ply").view_up.has_value());
 }
 
+TEST(Discover, ASmallObjectIsAlsoACandidateWithoutTheFoldAtItsFoot) {
+  // A 2.5 cm tall bump of radius 3 cm on a table (4 mm grid), its lower part rounded into the
+  // table over 1.5 cm, as fusion rounds the foot of a small object.
+  TriangleMesh mesh = testing::makeHeightField(201, 0.4f, [](float x, float y) {
+    const float t = std::clamp((0.03f - std::hypot(x, y)) / 0.015f, 0.0f, 1.0f);
+    return 0.025f * t * t * (3.0f - 2.0f * t);
+  });
+  // The fold: vertices off the table up to 8 mm high, their normals within 50 degrees of up.
+  auto inFold = [&](std::int32_t v) {
+    return mesh.positions[v].z() <= 0.008f && mesh.normals[v].z() >= std::cos(0.8727f);
+  };
+  auto trimmed = [&](const Segment& s) {
+    std::vector<std::int32_t> kept;
+    for (std::int32_t v : s.vertices) {
+      if (!inFold(v)) kept.push_back(v);
+    }
+    return kept;
+  };
+  auto bumps = [&](const std::vector<Segment>& segments) {  // those within the bump's radius
+    std::vector<const Segment*> out;
+    for (const Segment& s : segments) {
+      if (std::all_of(s.vertices.begin(), s.vertices.end(), [&](std::int32_t v) {
+            return mesh.positions[v].head<2>().norm() < 0.031f;
+          })) {
+        out.push_back(&s);
+      }
+    }
+    return out;
+  };
+  const SceneCandidates with = findCandidates(mesh, DiscoveryConfig{});
+  DiscoveryConfig off;
+  off.supports.trim_feet = false;
+  const SceneCandidates without = findCandidates(mesh, off);
+  // Without trimming, the bump's candidates all hold fold vertices; with it, each of those small
+  // enough comes again without them.
+  std::size_t untrimmed = 0, found = 0;
+  for (const Segment* s : bumps(without.segments)) {
+    const std::vector<std::int32_t> kept = trimmed(*s);
+    ASSERT_LT(kept.size(), s->vertices.size());
+    ++untrimmed;
+    for (const Segment* t : bumps(with.segments)) found += t->vertices == kept;
+  }
+  ASSERT_GT(untrimmed, 0u);
+  EXPECT_EQ(found, untrimmed);
+  EXPECT_EQ(with.segments.size(), without.segments.size() + untrimmed);
+  // A single view's scene is not trimmed: fusion did not round it.
+  SceneInput view = sceneFromMesh("view", mesh);
+  view.single_view = true;
+  std::vector<SceneInput> scenes;
+  scenes.push_back(std::move(view));
+  SceneDiscoveryOptions options;
+  const SceneDiscovery run = discoverScenes(std::move(scenes), options);
+  EXPECT_EQ(run.scenes.at(0).candidates.segments.size(), without.segments.size());
+}
+
 TEST(Discover, TheSettingsKeyChangesWithTheColourCuts) {
   // The catalog recomputes a scene measured with other settings: the colour cuts change the
   // candidates, so they are part of the key; without them it is what it was before they existed.

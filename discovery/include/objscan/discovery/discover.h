@@ -103,6 +103,7 @@ struct EffectiveScales {
   /// under min_size exist only where segmentation could not merge them).
   std::size_t candidate_min_size = 0;
   std::size_t evidence_vertices = 0;  ///< ObjectSetConfig::evidence_vertices, scaled
+  std::size_t foot_trim_vertices = 0;  ///< SupportConfig::foot_trim_vertices, scaled
   double median_edge_m = 0.0;
 };
 EffectiveScales effectiveScales(const MeshGraph& graph, const TriangleMesh& mesh,

@@ -38,6 +38,9 @@ struct SceneInput {
   /// Which way was up for the camera, in the mesh's frame (ContextConfig::view_up): a single
   /// view's -y, a fused scan's viewUp of its trajectory; nothing when unknown.
   std::optional<Eigen::Vector3f> view_up;
+  /// A camera's single view (a point cloud or a frame, meshed by joining pixels), not a fused
+  /// mesh: its objects' feet were not rounded by fusion (SupportConfig::trim_feet is off for it).
+  bool single_view = false;
 };
 
 /// How loadScene reads a scene.
@@ -119,6 +122,7 @@ struct DiscoveredScene {
   std::optional<GroundTruthObjects> truth;          ///< labelled runs only
   std::optional<GroundTruthObjects> whole_objects;  ///< SceneInput::whole_objects
   std::optional<Eigen::Vector3f> view_up;           ///< SceneInput::view_up
+  bool single_view = false;                         ///< SceneInput::single_view
   std::size_t hypotheses = 0;  ///< how many of SceneDiscovery::ranked are this scene's
 };
 
