@@ -240,8 +240,6 @@ Supports supportsOf(const TriangleMesh& mesh, const MeshGraph& graph,
   return none;
 }
 
-}  // namespace
-
 /// Appends to `segments` each small one standing on a support again without its foot
 /// (SupportConfig::trim_feet), when what is left passes the filter.
 void appendTrimmedFeet(const TriangleMesh& mesh, const Supports& supports,
@@ -275,6 +273,8 @@ void appendTrimmedFeet(const TriangleMesh& mesh, const Supports& supports,
     if (!rejection(trimmed, config.filter)) segments.push_back(std::move(trimmed));
   }
 }
+
+}  // namespace
 
 SceneCandidates findCandidates(const TriangleMesh& mesh, const DiscoveryConfig& config) {
   config.validate();
