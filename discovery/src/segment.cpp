@@ -211,8 +211,9 @@ std::vector<std::size_t> suppressOverlaps(const std::vector<Segment>& segments,
       // sizes differ by more than max_iou overlap by more: IoU <= smaller / larger.
       if (s.vertices.back() < t.vertices.front() || t.vertices.back() < s.vertices.front())
         continue;
-      const auto [smaller, larger] = std::minmax(s.vertices.size(), t.vertices.size());
-      if (static_cast<double>(smaller) <= max_iou * static_cast<double>(larger)) continue;
+      const double smaller = static_cast<double>(std::min(s.vertices.size(), t.vertices.size()));
+      const double larger = static_cast<double>(std::max(s.vertices.size(), t.vertices.size()));
+      if (smaller <= max_iou * larger) continue;
       if (vertexIoU(s.vertices, t.vertices) > max_iou) {
         overlaps = true;
         break;
