@@ -325,6 +325,45 @@ TEST(Discover, ASmallObjectIsAlsoACandidateWithoutTheFoldAtItsFoot) {
   EXPECT_EQ(run.scenes.at(0).candidates.segments.size(), without.segments.size());
 }
 
+TEST(Discover, AScenesViewUpReachesTheContextOfItsCandidates) {
+  // The table with its two mounds, and a wall along its back (y = 0.6 m, facing the room, 4 mm
+  // grid) with a bump of the same shape 30 cm over the table.
+  TriangleMesh mesh = table(true);
+  TriangleMesh wall = testing::makeHeightField(301, 0.6f, [](float x, float y) {
+    const float t = std::clamp((0.06f - std::hypot(x, y - 0.3f)) / 0.024f, 0.0f, 1.0f);
+    return 0.04f * t * t * (3.0f - 2.0f * t);
+  });
+  const std::int32_t first = static_cast<std::int32_t>(mesh.positions.size());
+  for (const Eigen::Vector3f& p : wall.positions) {
+    mesh.positions.emplace_back(p.x(), 0.6f - p.z(), 0.6f + p.y());  // turned up, facing -y
+  }
+  for (const Eigen::Vector3i& t : wall.triangles) mesh.triangles.push_back(t.array() + first);
+  mesh.normals.clear();
+  auto onTheWall = [&](const Hypothesis& h) {  // its centre off the wall, over the table
+    return h.segment.centroid.y() > 0.5f;
+  };
+  auto footings = [&](std::optional<Eigen::Vector3f> up) {
+    std::vector<SceneInput> scenes;
+    scenes.push_back(sceneFromMesh("room", mesh));
+    scenes.back().view_up = up;
+    const SceneDiscovery run = discoverScenes(std::move(scenes), SceneDiscoveryOptions{});
+    std::vector<Footing> out;
+    for (const RankedHypothesis& r : run.ranked) {
+      if (r.hypothesis.object_rank > 0 && onTheWall(r.hypothesis)) {
+        out.push_back(r.hypothesis.context.footing);
+      }
+    }
+    return out;
+  };
+  // Without the camera's up the wall holds the bump up; with it, the wall is no ground.
+  const std::vector<Footing> without = footings(std::nullopt);
+  ASSERT_FALSE(without.empty());
+  EXPECT_EQ(without.front(), Footing::kSupport);
+  const std::vector<Footing> with = footings(Eigen::Vector3f(0.0f, 0.3f, 1.0f));
+  ASSERT_FALSE(with.empty());
+  EXPECT_EQ(with.front(), Footing::kNone);
+}
+
 TEST(Discover, TheSettingsKeyChangesWithTheColourCuts) {
   // The catalog recomputes a scene measured with other settings: the colour cuts change the
   // candidates, so they are part of the key; without them it is what it was before they existed.
