@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <numbers>
 #include <numeric>
 #include <stdexcept>
 #include <string>
@@ -12,6 +11,7 @@
 #include <tbb/parallel_for.h>
 
 #include "connected_regions.h"
+#include "plane_tests.h"
 #include "point_index.h"
 
 namespace objscan::discovery {
@@ -45,8 +45,6 @@ std::vector<UpPlane> orientedPlanes(const TriangleMesh& mesh, const Supports& su
   return planes;
 }
 
-float cosOfDegrees(float degrees) { return std::cos(degrees * std::numbers::pi_v<float> / 180.0f); }
-
 /// The ground among `planes` (supports' `planes`, turned): the largest whose free side lies
 /// within `up_hint_deg` of the camera's up (a small slope nearer the hint does not outvote the
 /// floor or the table); -1 without a hint or with none near it.
@@ -58,7 +56,8 @@ int groundPlane(const std::vector<UpPlane>& planes, const std::vector<SupportPla
   int ground = -1;
   for (std::size_t k = 0; k < planes.size(); ++k) {
     if (planes[k].up.dot(hint) < min_cos) continue;
-    if (ground < 0 || supports[k].vertex_count > supports[static_cast<std::size_t>(ground)].vertex_count) {
+    if (ground < 0 ||
+        supports[k].vertex_count > supports[static_cast<std::size_t>(ground)].vertex_count) {
       ground = static_cast<int>(k);
     }
   }
@@ -101,25 +100,25 @@ float footGap(const ContextConfig& config, const SegmentContext& c) {
   return std::max(config.gap_m, config.gap_edges * static_cast<float>(c.mean_edge_m));
 }
 
-/// The vertices of `vertices` at most `max_height` over `plane`.
+/// The vertices of `vertices` whose heights over `plane` lie in [min_height, max_height].
+std::vector<std::int32_t> verticesBetween(const TriangleMesh& mesh,
+                                          const std::vector<std::int32_t>& vertices,
+                                          const UpPlane& plane, float min_height,
+                                          float max_height) {
+  std::vector<std::int32_t> out;
+  for (std::int32_t v : vertices) {
+    const float h = plane.height(mesh.positions[static_cast<std::size_t>(v)]);
+    if (h >= min_height && h <= max_height) out.push_back(v);
+  }
+  return out;
+}
+
+/// A candidate's foot: its vertices at most `max_height` over `plane`.
 std::vector<std::int32_t> footOf(const TriangleMesh& mesh,
                                  const std::vector<std::int32_t>& vertices, const UpPlane& plane,
                                  float max_height) {
-  std::vector<std::int32_t> foot;
-  for (std::int32_t v : vertices) {
-    if (plane.height(mesh.positions[static_cast<std::size_t>(v)]) <= max_height) foot.push_back(v);
-  }
-  return foot;
-}
-
-/// The vertices of `vertices` at least `min_height` over `plane`.
-std::vector<std::int32_t> topOf(const TriangleMesh& mesh, const std::vector<std::int32_t>& vertices,
-                                const UpPlane& plane, float min_height) {
-  std::vector<std::int32_t> top;
-  for (std::int32_t v : vertices) {
-    if (plane.height(mesh.positions[static_cast<std::size_t>(v)]) >= min_height) top.push_back(v);
-  }
-  return top;
+  return verticesBetween(mesh, vertices, plane, -std::numeric_limits<float>::infinity(),
+                         max_height);
 }
 
 /// Every k-th index of a list of `size`, so that at most `most` are visited.
@@ -160,7 +159,8 @@ void ContextConfig::validate() const {
   if (view_up && (!view_up->allFinite() || !(view_up->norm() > 0.0f))) {
     throw std::invalid_argument("the camera's up must be a finite, non-zero direction");
   }
-  if (!(up_hint_deg >= 0.0f && up_hint_deg <= 90.0f) || !(level_deg >= 0.0f && level_deg <= 90.0f)) {
+  if (!(up_hint_deg >= 0.0f && up_hint_deg <= 90.0f) ||
+      !(level_deg >= 0.0f && level_deg <= 90.0f)) {
     throw std::invalid_argument("the context's angles to up must lie in [0, 90] degrees");
   }
 }
@@ -245,7 +245,8 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
         top = std::max(top, planes[j].height(mesh.positions[static_cast<std::size_t>(v)]));
       }
       if (top < -kUnderM || top > config.below_m) continue;
-      const std::vector<std::int32_t> crown = topOf(mesh, s.vertices, planes[j], top - kCoverM);
+      const std::vector<std::int32_t> crown =
+          verticesBetween(mesh, s.vertices, planes[j], top - kCoverM, top);
       const std::size_t stride = strideFor(crown.size(), 64);
       for (std::size_t f = 0; f < crown.size(); f += stride) {
         const Eigen::Vector3f& p = mesh.positions[static_cast<std::size_t>(crown[f])];

@@ -6,7 +6,6 @@
 #include <cmath>
 #include <ctime>
 #include <iomanip>
-#include <numbers>
 #include <numeric>
 #include <sstream>
 #include <stdexcept>
@@ -17,6 +16,7 @@
 
 #include "objscan/core/clock.h"
 #include "objscan/discovery/segmentation.h"
+#include "plane_tests.h"
 #include "stopwatch.h"
 
 namespace objscan::discovery {
@@ -246,18 +246,13 @@ void appendTrimmedFeet(const TriangleMesh& mesh, const Supports& supports,
                        const DiscoveryConfig& config, const EffectiveScales& effective,
                        std::vector<Segment>& segments) {
   if (!config.supports.enabled || !config.supports.trim_feet || supports.planes.empty()) return;
-  const float min_cos =
-      std::cos(config.supports.foot_fold_deg * std::numbers::pi_v<float> / 180.0f);
+  const float min_cos = cosOfDegrees(config.supports.foot_fold_deg);
   const auto inFold = [&](std::int32_t v) {
     const Eigen::Vector3f& p = mesh.positions[static_cast<std::size_t>(v)];
     const Eigen::Vector3f& n = mesh.normals[static_cast<std::size_t>(v)];
-    for (const SupportPlane& plane : supports.planes) {
-      if (std::abs(plane.normal.dot(p) + plane.offset) <= config.supports.foot_fold_m &&
-          std::abs(plane.normal.dot(n)) >= min_cos * n.norm()) {
-        return true;
-      }
-    }
-    return false;
+    return std::any_of(supports.planes.begin(), supports.planes.end(), [&](const SupportPlane& s) {
+      return onPlane(s.normal, s.offset, p, n, config.supports.foot_fold_m, min_cos);
+    });
   };
   const std::size_t count = segments.size();
   for (std::size_t i = 0; i < count; ++i) {

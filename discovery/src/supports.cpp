@@ -15,6 +15,7 @@
 #include <pcl/sample_consensus/sac_model_plane.h>
 
 #include "connected_regions.h"
+#include "plane_tests.h"
 
 namespace objscan::discovery {
 
@@ -51,9 +52,7 @@ PlaneHypothesis bestPlane(const TriangleMesh& mesh, const pcl::Indices& sample, 
     std::size_t support = 0;
     for (const pcl::index_t i : sample) {
       const auto u = static_cast<std::size_t>(i);
-      const float n = mesh.normals[u].norm();  // 0 for a vertex without a normal: never agrees
-      support += n > 0.0f && std::abs(normal.dot(mesh.positions[u]) + offset) <= distance &&
-                 std::abs(normal.dot(mesh.normals[u])) >= min_cos * n;
+      support += onPlane(normal, offset, mesh.positions[u], mesh.normals[u], distance, min_cos);
     }
     if (support > best.support) best = {normal, offset, support};
   }
@@ -95,7 +94,7 @@ Supports findSupports(const TriangleMesh& mesh, const MeshGraph& graph, const Su
   auto cloud = std::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
   cloud->reserve(n);
   for (const Eigen::Vector3f& p : mesh.positions) cloud->push_back({p.x(), p.y(), p.z()});
-  const float min_cos = std::cos(config.max_angle_deg * static_cast<float>(M_PI) / 180.0f);
+  const float min_cos = cosOfDegrees(config.max_angle_deg);
   // Vertices on a plane found already (within the distance, whatever their normals): later
   // planes are fitted to the rest, so that no plane is found twice.
   std::vector<std::uint8_t> taken(n, 0);

@@ -54,9 +54,9 @@ struct HypothesisRecord {
     return object_rank.value_or(0) > 0 ? object_score : std::nullopt;
   }
   /// Its context (discovery::SegmentContext): how it stands ("support", "surface", "patch",
-  /// "under" or "none"; empty when unknown), the height of its lowest point over the support plane under
-  /// it, its share of its region off the supports, how well fusion saw it, and for one on a
-  /// support how far it rises over it and the support's noise there.
+  /// "under" or "none"; empty when unknown), the height of its lowest point over the support
+  /// plane under it, its share of its region off the supports, how well fusion saw it, and for
+  /// one on a support how far it rises over it and the support's noise there.
   std::string footing;
   std::optional<double> height_m, share_of_region, observation, rise_m, support_noise_m;
 };
