@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <optional>
 #include <thread>
 #include <utility>
 
@@ -53,8 +54,16 @@ void LiveRun::watch(pipeline::FuseLimits& limits) {
 }
 
 void LiveRun::finish(LiveFinal final, bool keep_serving) {
+  const bool linger = keep_serving && !(options_.wait_s && *options_.wait_s <= 0.0);
+  // A Ctrl-C after the capture ended (on a sensor, the first one ends capture and is cleared)
+  // but before the results were shown asks to end: no waiting.
+  const bool asked_to_end = StopSignals::stopRequested();
+  // The handlers go in before the final state is published: whoever watches the page may stop
+  // the server the moment it sees the end, and must not meet the default action (exit 143).
+  std::optional<StopSignals> signals;
+  if (linger && !asked_to_end) signals.emplace();
   session_.finish(std::move(final));
-  if (!keep_serving || (options_.wait_s && *options_.wait_s <= 0.0)) {
+  if (!linger) {
     // A page that is watching learns the end before the server goes (its long poll is answered
     // at once); at most 1.5 s, and not at all when no page asked lately.
     const auto start = SteadyClock::now();
@@ -63,14 +72,11 @@ void LiveRun::finish(LiveFinal final, bool keep_serving) {
     }
     return;
   }
-  // A Ctrl-C after the capture ended (on a sensor, the first one ends capture and is cleared)
-  // but before the results were shown asks to end: no waiting.
-  if (StopSignals::stopRequested()) return;
+  if (asked_to_end) return;
   char how_long[64] = "until Ctrl-C";
   if (options_.wait_s) std::snprintf(how_long, sizeof how_long, "for %g s", *options_.wait_s);
   std::printf("live page     %s shows the results %s\n", server_.url().c_str(), how_long);
   std::fflush(stdout);
-  StopSignals signals;  // its own handlers: fuse's are gone by now
   StopSignals::waitForStop(options_.wait_s);
 }
 
