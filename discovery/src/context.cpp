@@ -126,6 +126,116 @@ std::size_t strideFor(std::size_t size, std::size_t most) {
   return std::max<std::size_t>(1, (size + most - 1) / most);
 }
 
+
+/// Which candidates hold each vertex: what a candidate resting on a surface may rest on.
+class VertexSegments {
+ public:
+  VertexSegments(const std::vector<Segment>& segments, std::size_t vertex_count)
+      : start_(vertex_count + 1, 0) {
+    for (const Segment& s : segments) {
+      for (std::int32_t v : s.vertices) ++start_[static_cast<std::size_t>(v) + 1];
+    }
+    std::partial_sum(start_.begin(), start_.end(), start_.begin());
+    segment_.resize(start_.back());
+    std::vector<std::size_t> next(start_.begin(), start_.end() - 1);
+    for (std::size_t j = 0; j < segments.size(); ++j) {
+      for (std::int32_t v : segments[j].vertices) {
+        segment_[next[static_cast<std::size_t>(v)]++] = static_cast<std::uint32_t>(j);
+      }
+    }
+  }
+
+  /// Whether `surface` (sorted) belongs to a candidate that stands (on a support or a surface)
+  /// and holds at least kMinSurfaceUnder of it and at most a tenth of `own` (sorted; one
+  /// holding the stacked candidate too is not under it). `hits` is scratch.
+  bool holds(const std::vector<Segment>& segments, const std::vector<SegmentContext>& context,
+             const std::vector<std::int32_t>& surface, const std::vector<std::int32_t>& own,
+             std::vector<std::uint32_t>* hits) const {
+    hits->clear();
+    for (std::int32_t v : surface) {
+      const std::size_t at = static_cast<std::size_t>(v);
+      hits->insert(hits->end(), segment_.begin() + static_cast<std::ptrdiff_t>(start_[at]),
+                   segment_.begin() + static_cast<std::ptrdiff_t>(start_[at + 1]));
+    }
+    std::sort(hits->begin(), hits->end());
+    for (std::size_t a = 0; a < hits->size();) {
+      std::size_t b = a;
+      while (b < hits->size() && (*hits)[b] == (*hits)[a]) ++b;
+      const std::uint32_t j = (*hits)[a];
+      if (b - a >= kMinSurfaceUnder && sharedCount(segments[j].vertices, own) * 10 <= own.size()) {
+        if (context[j].footing == Footing::kSupport || context[j].footing == Footing::kOnSurface) {
+          return true;
+        }
+      }
+      a = b;
+    }
+    return false;
+  }
+
+ private:
+  static std::size_t sharedCount(const std::vector<std::int32_t>& a,
+                                 const std::vector<std::int32_t>& b) {
+    std::size_t count = 0;
+    for (std::size_t i = 0, j = 0; i < a.size() && j < b.size();) {
+      if (a[i] < b[j]) {
+        ++i;
+      } else if (b[j] < a[i]) {
+        ++j;
+      } else {
+        ++count, ++i, ++j;
+      }
+    }
+    return count;
+  }
+
+  std::vector<std::size_t> start_;
+  std::vector<std::uint32_t> segment_;
+};
+
+
+/// A level surface around a candidate's foot counts as broad, holding it up without a standing
+/// candidate of its own (a counter or a board no support plane found), when its vertices in the
+/// ring kBroadRingM wide around the candidate's footprint cover at least kBroadCover of the ring.
+constexpr float kBroadRingM = 0.03f;
+constexpr double kBroadCover = 0.25;
+
+bool broadLevelSurface(const TriangleMesh& mesh, const PointIndex& all_index,
+                       const UpPlane& plane, const Segment& s,
+                       const std::vector<std::int32_t>& surface, float gap, double mean_edge_m,
+                       float min_cos) {
+  if (surface.empty() || !(mean_edge_m > 0.0)) return false;
+  Eigen::Vector3f centre = Eigen::Vector3f::Zero();
+  float height = 0.0f;
+  for (std::int32_t v : surface) {
+    centre += mesh.positions[static_cast<std::size_t>(v)];
+    height += plane.height(mesh.positions[static_cast<std::size_t>(v)]);
+  }
+  centre /= static_cast<float>(surface.size());
+  height /= static_cast<float>(surface.size());
+  auto across = [&](const Eigen::Vector3f& p) {  // distance from the centre along the plane
+    const Eigen::Vector3f d = p - centre;
+    return (d - plane.up.dot(d) * plane.up).norm();
+  };
+  float radius = 0.0f;
+  for (std::int32_t v : s.vertices) {
+    radius = std::max(radius, across(mesh.positions[static_cast<std::size_t>(v)]));
+  }
+  std::vector<std::pair<std::uint32_t, float>> found;
+  all_index.within(centre - (plane.height(centre) - height) * plane.up, radius + kBroadRingM,
+                   &found);
+  std::size_t in_ring = 0;
+  for (const auto& [point, distance_sq] : found) {
+    const Eigen::Vector3f& p = mesh.positions[point];
+    if (plane.up.dot(mesh.normals[point]) < min_cos) continue;
+    if (std::abs(plane.height(p) - height) > 0.5f * gap || across(p) <= radius) continue;
+    if (contains(s.vertices, static_cast<std::int32_t>(point))) continue;
+    ++in_ring;
+  }
+  const double ring_area = M_PI * (std::pow(radius + kBroadRingM, 2.0) - std::pow(radius, 2.0));
+  const double vertex_area = std::sqrt(3.0) / 2.0 * mean_edge_m * mean_edge_m;
+  return static_cast<double>(in_ring) >= kBroadCover * ring_area / vertex_area;
+}
+
 }  // namespace
 
 const char* toString(Footing footing) {
@@ -362,9 +472,10 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
         }
       });
 
-  // Stacks and boards too small to be supports: a candidate whose foot rests on a surface that
-  // faces up (as its support's plane does), level with or under the foot and not its own, stands
-  // on that: a box on a box, a can on a shelf board that no support plane holds.
+  // Stacks: a candidate whose foot rests on a surface that faces up (as its support's plane
+  // does), level with or under the foot and not its own, stands on that when the surface belongs
+  // to a candidate that stands itself: a box on a box, a can on a book. A leaf resting on a leaf
+  // rests on something that stands on nothing.
   // Up is the ground's normal or, without one, that of the plane most candidates stand on (a
   // table, the floor, a shelf board): a candidate's own lowest plane may be the wall it leans on.
   std::vector<std::size_t> standing(planes.size(), 0);
@@ -379,43 +490,68 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
   const UpPlane& plane = planes[static_cast<std::size_t>(
       std::max_element(standing.begin(), standing.end()) - standing.begin())];
   const PointIndex all_index(mesh.positions);
+  // The surface under each candidate that stands on no support (sorted vertex indices).
+  std::vector<std::vector<std::int32_t>> under(segments.size());
   tbb::parallel_for(
       tbb::blocked_range<std::size_t>(0, segments.size()),
       [&](const tbb::blocked_range<std::size_t>& range) {
         std::vector<std::pair<std::uint32_t, float>> found;
-        std::vector<std::int32_t> under;
         for (std::size_t i = range.begin(); i < range.end(); ++i) {
-          SegmentContext& c = out[i];
-          if (c.footing != Footing::kNone || lowest[i].plane < 0) continue;
+          if (out[i].footing != Footing::kNone || lowest[i].plane < 0) continue;
           const Segment& s = segments[i];
           float lowest_height = std::numeric_limits<float>::infinity();
           for (std::int32_t v : s.vertices) {
             lowest_height =
                 std::min(lowest_height, plane.height(mesh.positions[static_cast<std::size_t>(v)]));
           }
-          const float gap = footGap(config, c);
+          const float gap = footGap(config, out[i]);
           // Its foot: the vertices within the gap of its lowest, at most 64 of them spread evenly.
           const std::vector<std::int32_t> foot =
               footOf(mesh, s.vertices, plane, lowest_height + gap);
           const std::size_t stride = strideFor(foot.size(), 64);
-          under.clear();
+          std::vector<std::int32_t>& u = under[i];
           for (std::size_t f = 0; f < foot.size(); f += stride) {
             const Eigen::Vector3f& p = mesh.positions[static_cast<std::size_t>(foot[f])];
             const float foot_height = plane.height(p);
             all_index.within(p, gap, &found);
-            for (const auto& [u, distance_sq] : found) {
-              const std::int32_t v = static_cast<std::int32_t>(u);
+            for (const auto& [point, distance_sq] : found) {
+              const std::int32_t v = static_cast<std::int32_t>(point);
               if (contains(s.vertices, v)) continue;
-              if (plane.up.dot(mesh.normals[u]) < min_cos) continue;
-              if (plane.height(mesh.positions[u]) > foot_height + 0.5f * gap) continue;
-              under.push_back(v);
+              if (plane.up.dot(mesh.normals[point]) < min_cos) continue;
+              if (plane.height(mesh.positions[point]) > foot_height + 0.5f * gap) continue;
+              u.push_back(v);
             }
           }
-          std::sort(under.begin(), under.end());
-          under.erase(std::unique(under.begin(), under.end()), under.end());
-          if (under.size() >= kMinSurfaceUnder) c.footing = Footing::kOnSurface;
+          std::sort(u.begin(), u.end());
+          u.erase(std::unique(u.begin(), u.end()), u.end());
+          if (u.size() < kMinSurfaceUnder) u.clear();
+          if (!config.stacks_need_standing_holder && !u.empty()) out[i].footing = Footing::kOnSurface;
         }
       });
+  if (!config.stacks_need_standing_holder) return out;
+  // Twice: what stands on a support holds a stack's second storey, which holds its third.
+  const VertexSegments holders(segments, n);
+  for (int storey = 0; storey < 2; ++storey) {
+    std::vector<std::uint8_t> held(segments.size(), 0);
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, segments.size()),
+        [&](const tbb::blocked_range<std::size_t>& range) {
+          std::vector<std::uint32_t> hits;
+          for (std::size_t i = range.begin(); i < range.end(); ++i) {
+            if (out[i].footing != Footing::kNone || under[i].empty()) continue;
+            held[i] = holders.holds(segments, out, under[i], segments[i].vertices, &hits) ||
+                      broadLevelSurface(mesh, all_index, plane, segments[i], under[i],
+                                        footGap(config, out[i]), out[i].mean_edge_m, min_cos);
+          }
+        });
+    bool changed = false;
+    for (std::size_t i = 0; i < segments.size(); ++i) {
+      if (!held[i]) continue;
+      out[i].footing = Footing::kOnSurface;
+      changed = true;
+    }
+    if (!changed) break;
+  }
   return out;
 }
 

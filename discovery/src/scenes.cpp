@@ -165,7 +165,11 @@ void takeFromCatalog(Catalog& catalog, const fs::path& catalog_path, std::int64_
 DiscoveryConfig configOf(const DiscoveredScene& scene, const DiscoveryConfig& config) {
   DiscoveryConfig out = config;
   if (scene.view_up) out.objects.context.view_up = scene.view_up;
-  if (scene.single_view) out.supports.trim_feet = false;
+  if (scene.single_view) {
+    out.supports.trim_feet = false;
+    out.objects.context.stacks_need_standing_holder = false;
+    out.objects.floating_penalty = out.objects.single_view_floating_penalty;
+  }
   return out;
 }
 
@@ -282,7 +286,7 @@ void rankAll(SceneDiscovery& run, const ObjectnessModel& scorer, const Discovery
   for (std::size_t s = 0; s < run.scenes.size(); ++s) {
     DiscoveredScene& scene = run.scenes[s];
     Stopwatch watch;
-    for (Hypothesis& h : rankObjects(scene.mesh, scene.candidates, scorer, config)) {
+    for (Hypothesis& h : rankObjects(scene.mesh, scene.candidates, scorer, configOf(scene, config))) {
       run.ranked.push_back({s, std::move(h)});
       ++scene.hypotheses;
     }

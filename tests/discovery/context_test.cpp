@@ -121,6 +121,58 @@ TEST(Context, ABoxAsHighAsTheStackedOneButBesideItFloats) {
   EXPECT_EQ(c[2].footing, Footing::kNone);
 }
 
+// A box resting on the floating box is held by nothing that stands (a leaf resting on a leaf of
+// a plant): it stands on nothing, unless stacks need no standing holder (single views).
+TEST(Context, WhatRestsOnAFloatingThingStandsOnNothing) {
+  Scene s = tableWithBoxes();
+  s.boxes.push_back(
+      describeSegment(s.mesh, addBox(s.mesh, 0.15f, 0.0f, kTable + 0.15f + 0.06f, 0.03f)));
+  const MeshGraph graph = buildMeshGraph(s.mesh);
+  const Supports supports = findSupports(s.mesh, graph, SupportConfig{}, 3000);
+  ContextConfig config;
+  std::vector<SegmentContext> c = segmentContexts(s.mesh, graph, supports, s.boxes, config);
+  ASSERT_EQ(c.size(), 4u);
+  EXPECT_EQ(c[1].footing, Footing::kOnSurface);  // on the box that stands on the table
+  EXPECT_EQ(c[2].footing, Footing::kNone);
+  EXPECT_EQ(c[3].footing, Footing::kNone);
+  config.stacks_need_standing_holder = false;
+  c = segmentContexts(s.mesh, graph, supports, s.boxes, config);
+  EXPECT_EQ(c[1].footing, Footing::kOnSurface);
+  EXPECT_EQ(c[3].footing, Footing::kOnSurface);
+  // A third storey: a box on the stacked one stands on it in turn.
+  s.boxes.push_back(
+      describeSegment(s.mesh, addBox(s.mesh, -0.15f, 0.0f, kTable + 0.08f + 0.06f, 0.04f)));
+  const MeshGraph graph3 = buildMeshGraph(s.mesh);
+  c = segmentContexts(s.mesh, graph3, findSupports(s.mesh, graph3, SupportConfig{}, 3000), s.boxes,
+                      ContextConfig{});
+  ASSERT_EQ(c.size(), 5u);
+  EXPECT_EQ(c[4].footing, Footing::kOnSurface);
+}
+
+// A board 10 cm over the table, too small to be a support (1681 vertices; supports need 3000)
+// and no candidate: a box on it stands on its broad level surface. A board hardly larger than
+// the box (7 cm square, a leaf) is no broad surface.
+TEST(Context, ABoxOnABroadBoardThatIsNoSupportStandsOnItsSurface) {
+  for (const int n : {41, 15}) {  // 5 mm apart
+    Scene s = tableWithBoxes();
+    const float half = 0.0025f * static_cast<float>(n - 1);
+    const TriangleMesh board = makeHeightField(n, half, [](float, float) { return 0.0f; });
+    const std::int32_t first = static_cast<std::int32_t>(s.mesh.positions.size());
+    for (const Eigen::Vector3f& p : board.positions) {
+      s.mesh.positions.emplace_back(p.x(), 0.25f + p.y(), kTable + 0.1f);
+      s.mesh.normals.push_back(Eigen::Vector3f::UnitZ());
+    }
+    for (const Eigen::Vector3i& t : board.triangles) s.mesh.triangles.push_back(t.array() + first);
+    s.boxes.push_back(describeSegment(s.mesh, addBox(s.mesh, 0.0f, 0.25f, kTable + 0.1f, 0.06f)));
+    const MeshGraph graph = buildMeshGraph(s.mesh);
+    const Supports supports = findSupports(s.mesh, graph, SupportConfig{}, 3000);
+    EXPECT_EQ(supports.planes.size(), 1u);
+    const std::vector<SegmentContext> c = segmentContexts(s.mesh, graph, supports, s.boxes);
+    ASSERT_EQ(c.size(), 4u);
+    EXPECT_EQ(c[3].footing, n == 41 ? Footing::kOnSurface : Footing::kNone) << n;
+  }
+}
+
 TEST(Context, AFlatPatchOnTheTableRisingLessThanACentimetreIsAPatchOfIt) {
   Scene s = tableWithBoxes();
   // A 6 cm square 5 mm over the table, facing up: what the support's 1 cm band leaves of a
@@ -277,12 +329,12 @@ TEST(ObjectSet, StandingCandidatesComeFirstAndNoTwoObjectsShareAVertex) {
   EXPECT_EQ(ranked[2].object_rank, 0u);
   EXPECT_EQ(ranked[3].object_rank, 0u);
   // The object score weighs the (positive) score by the evidence, n / (n + 100) of it, adds
-  // 0.1 ln(share of its region) and takes 0.6 from a floating candidate.
+  // 0.1 ln(share of its region) and takes the floating penalty (1.0) from a floating candidate.
   const double n = static_cast<double>(s.boxes[2].vertices.size());
   EXPECT_GT(ranked[1].score, 0.0);
   EXPECT_NEAR(
       ranked[1].object_score,
-      ranked[1].score * n / (n + 100) + 0.1 * std::log(ranked[1].context.share_of_region) - 0.6,
+      ranked[1].score * n / (n + 100) + 0.1 * std::log(ranked[1].context.share_of_region) - 1.0,
       1e-9);
 }
 
@@ -301,7 +353,7 @@ TEST(ObjectSet, AStandingBoxOutranksAFloatingOneThatScoresALittleBetter) {
   ASSERT_EQ(ranked.size(), 3u);
   EXPECT_EQ(ranked[0].segment.vertices, s.boxes[0].vertices);  // on the table
   EXPECT_EQ(ranked[1].segment.vertices, s.boxes[1].vertices);  // on the box: 0.3 less
-  EXPECT_EQ(ranked[2].segment.vertices, s.boxes[2].vertices);  // in the air: 0.6 less
+  EXPECT_EQ(ranked[2].segment.vertices, s.boxes[2].vertices);  // in the air: 1.0 less
   EXPECT_GT(ranked[2].score, ranked[0].score);
   // A score better by more than the penalty still comes first.
   candidates.measures[2].compactness = 1.5;

@@ -22,8 +22,8 @@ namespace objscan::discovery {
 enum class Footing : std::uint8_t {
   kNone,     ///< nothing holds it up: a piece of foliage, a fragment of a lamp or a wall's edge
   kSupport,  ///< its lowest part touches a support surface (a table, a shelf board, the floor)
-  /// its lowest part rests on another surface facing up: an object under it (a stack), or a
-  /// shelf board too small to be a support
+  /// its lowest part rests on another surface facing up, of a candidate that stands itself: an
+  /// object under it (a stack; ContextConfig::stacks_need_standing_holder)
   kOnSurface,
   /// it lies on a support but rises no more than the support's noise: a patch of the table
   kPatch,
@@ -64,6 +64,12 @@ struct ContextConfig {
   float up_hint_deg = 60.0f;
   /// The supports whose free sides lie within this angle of the ground's hold candidates up.
   float level_deg = 25.0f;
+  /// A candidate resting on a surface (Footing::kOnSurface) needs that surface to belong to a
+  /// candidate that stands itself (on a support, or on a surface in turn): a leaf resting on a
+  /// leaf of a plant stands on nothing. Off: any surface facing up holds it. discoverScenes turns
+  /// it off for single views (SceneInput::single_view), where the lower box of a stack often
+  /// shows no foot of its own (hidden behind what stands in front of it).
+  bool stacks_need_standing_holder = true;
 
   /// Throws std::invalid_argument naming the first bad field.
   void validate() const;

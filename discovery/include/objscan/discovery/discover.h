@@ -51,7 +51,11 @@ struct ObjectSetConfig {
   /// than a support (Footing::kOnSurface), and for one that stands on nothing, is a patch of a
   /// support or reaches up to one (Footing::kNone, kPatch, kUnder).
   double on_surface_penalty = 0.3;
-  double floating_penalty = 0.6;
+  double floating_penalty = 1.0;
+  /// discoverScenes uses this floating penalty for single views (SceneInput::single_view): one
+  /// view often hides where a thing meets its support, and a fused mesh, seen from around, less
+  /// so. Chosen on synthetic fused scenes (1.0) and on mOSD learn (0.6); docs/discovery.md.
+  double single_view_floating_penalty = 0.6;
   /// The share of a candidate's vertices that objects before it may already hold.
   double max_taken_share = 0.1;
   /// Throws std::invalid_argument naming the first bad field.
