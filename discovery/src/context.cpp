@@ -11,6 +11,7 @@
 #include <tbb/parallel_for.h>
 
 #include "connected_regions.h"
+#include "ground.h"
 #include "plane_tests.h"
 #include "point_index.h"
 
@@ -237,6 +238,14 @@ bool broadLevelSurface(const TriangleMesh& mesh, const PointIndex& all_index,
 }
 
 }  // namespace
+
+std::optional<Eigen::Vector3f> groundUp(const TriangleMesh& mesh, const Supports& supports,
+                                        const ContextConfig& config) {
+  const std::vector<UpPlane> planes = orientedPlanes(mesh, supports);
+  const int ground = groundPlane(planes, supports.planes, config);
+  if (ground < 0) return std::nullopt;
+  return planes[static_cast<std::size_t>(ground)].up;
+}
 
 const char* toString(Footing footing) {
   switch (footing) {

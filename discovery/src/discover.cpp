@@ -6,7 +6,9 @@
 #include <cmath>
 #include <ctime>
 #include <iomanip>
+#include <limits>
 #include <numeric>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 
@@ -16,6 +18,8 @@
 
 #include "objscan/core/clock.h"
 #include "objscan/discovery/segmentation.h"
+#include "connected_regions.h"
+#include "ground.h"
 #include "plane_tests.h"
 #include "stopwatch.h"
 
@@ -169,6 +173,10 @@ std::string settingsKey(const DiscoveryConfig& c) {
       s << " feet " << c.supports.foot_fold_m << ' ' << c.supports.foot_fold_deg << ' '
         << c.supports.foot_trim_vertices;
     }
+    if (c.supports.level_tops) {
+      s << " tops " << c.supports.top_level_deg << ' ' << c.supports.top_min_vertices << ' '
+        << c.supports.top_flatness_m;
+    }
   }
   if (c.convexity.enabled) {
     s << " convexity";
@@ -241,6 +249,26 @@ Supports supportsOf(const TriangleMesh& mesh, const MeshGraph& graph,
   return none;
 }
 
+/// A small candidate (at most foot_trim_vertices) without its foot, the vertices `inFold` picks,
+/// when that removes at least a tenth of it and what is left passes the filter.
+template <class InFold>
+std::optional<Segment> withoutFoot(const TriangleMesh& mesh, const Segment& s, InFold inFold,
+                                   const DiscoveryConfig& config,
+                                   const EffectiveScales& effective) {
+  if (s.vertices.size() > effective.foot_trim_vertices) return std::nullopt;
+  std::vector<std::int32_t> kept;
+  for (std::int32_t v : s.vertices) {
+    if (!inFold(v)) kept.push_back(v);
+  }
+  const std::size_t removed = s.vertices.size() - kept.size();
+  if (10 * removed < s.vertices.size() || kept.size() < effective.candidate_min_size) {
+    return std::nullopt;
+  }
+  Segment trimmed = describeSegment(mesh, std::move(kept), s.scale);
+  if (rejection(trimmed, config.filter)) return std::nullopt;
+  return trimmed;
+}
+
 /// Appends to `segments` each small one standing on a support again without its foot
 /// (SupportConfig::trim_feet), when what is left passes the filter.
 void appendTrimmedFeet(const TriangleMesh& mesh, const Supports& supports,
@@ -257,16 +285,175 @@ void appendTrimmedFeet(const TriangleMesh& mesh, const Supports& supports,
   };
   const std::size_t count = segments.size();
   for (std::size_t i = 0; i < count; ++i) {
-    const Segment& s = segments[i];
-    if (s.vertices.size() > effective.foot_trim_vertices) continue;
-    std::vector<std::int32_t> kept;
-    for (std::int32_t v : s.vertices) {
-      if (!inFold(v)) kept.push_back(v);
+    std::optional<Segment> trimmed = withoutFoot(mesh, segments[i], inFold, config, effective);
+    if (trimmed) segments.push_back(std::move(*trimmed));
+  }
+}
+
+
+/// A vertex lies over a level top when it is higher than the top by more than kOverTopM (the
+/// fold at a thing's foot begins under it) and less than kOverTopMaxM, and no further from the
+/// top's middle along it than the top reaches plus kTopMarginM.
+constexpr float kOverTopM = 0.004f;
+constexpr float kOverTopMaxM = 0.3f;
+constexpr float kTopMarginM = 0.01f;
+
+/// Appends the candidates that stand on level tops which are no supports
+/// (SupportConfig::level_tops): `graph` is the mesh's, cut at the supports.
+void appendOnLevelTops(const TriangleMesh& mesh, const MeshGraph& graph, const Supports& supports,
+                       const DiscoveryConfig& config, const EffectiveScales& effective,
+                       std::vector<Segment>& segments) {
+  if (!config.supports.enabled || !config.supports.level_tops) return;
+  const std::optional<Eigen::Vector3f> up = groundUp(mesh, supports, config.objects.context);
+  if (!up) return;
+  const std::size_t n = mesh.positions.size();
+  const float min_cos = cosOfDegrees(config.supports.top_level_deg);
+  std::vector<std::uint8_t> level(n, 0);
+  for (std::size_t v = 0; v < n; ++v) {
+    level[v] = !supports.on_support[v] && up->dot(mesh.normals[v]) >= min_cos;
+  }
+  // The level regions, their sizes and heights; the flat and large enough are tops.
+  const std::vector<std::int32_t> region = connectedRegions(graph, level);
+  std::vector<double> count(n, 0.0), sum(n, 0.0), sum_sq(n, 0.0);
+  for (std::size_t v = 0; v < n; ++v) {
+    if (!level[v]) continue;
+    const std::size_t r = static_cast<std::size_t>(region[v]);
+    const double h = up->dot(mesh.positions[v]);
+    count[r] += 1.0;
+    sum[r] += h;
+    sum_sq[r] += h * h;
+  }
+  const double min_count = std::max<double>(
+      1.0, static_cast<double>(config.supports.top_min_vertices) *
+               static_cast<double>(effective.min_size) / static_cast<double>(config.min_size));
+  std::vector<std::uint8_t> on_top(n, 0);
+  bool any = false;
+  for (std::size_t v = 0; v < n; ++v) {
+    if (!level[v]) continue;
+    const std::size_t r = static_cast<std::size_t>(region[v]);
+    const double mean = sum[r] / count[r];
+    const double spread = std::sqrt(std::max(0.0, sum_sq[r] / count[r] - mean * mean));
+    on_top[v] = count[r] >= min_count && spread <= config.supports.top_flatness_m;
+    any = any || on_top[v];
+  }
+  if (!any) return;
+  // Each top's middle, reach along it and height; what lies over a top (higher than the fold at
+  // its foot, within its reach) is cut from the rest and segmented again: a thing on a lid, apart
+  // from the lid's rounded edge, through which it would join the box's sides.
+  struct Top {
+    Eigen::Vector3f middle = Eigen::Vector3f::Zero();
+    float reach = 0.0f;
+    float height = 0.0f;
+    std::size_t count = 0;
+  };
+  std::vector<Top> tops;
+  std::vector<std::int32_t> top_of(n, -1);
+  for (std::size_t v = 0; v < n; ++v) {
+    if (!on_top[v]) continue;
+    const std::size_t r = static_cast<std::size_t>(region[v]);
+    if (top_of[r] < 0) {
+      top_of[r] = static_cast<std::int32_t>(tops.size());
+      tops.emplace_back();
     }
-    const std::size_t removed = s.vertices.size() - kept.size();
-    if (10 * removed < s.vertices.size() || kept.size() < effective.candidate_min_size) continue;
-    Segment trimmed = describeSegment(mesh, std::move(kept), s.scale);
-    if (!rejection(trimmed, config.filter)) segments.push_back(std::move(trimmed));
+    Top& t = tops[static_cast<std::size_t>(top_of[r])];
+    t.middle += mesh.positions[v];
+    ++t.count;
+  }
+  const auto along = [&](const Eigen::Vector3f& d) { return (d - up->dot(d) * *up).norm(); };
+  for (Top& t : tops) t.middle /= static_cast<float>(t.count);
+  for (std::size_t v = 0; v < n; ++v) {
+    if (!on_top[v]) continue;
+    Top& t = tops[static_cast<std::size_t>(top_of[static_cast<std::size_t>(region[v])])];
+    t.reach = std::max(t.reach, along(mesh.positions[v] - t.middle));
+  }
+  for (Top& t : tops) t.height = up->dot(t.middle);
+  std::vector<std::uint8_t> over(n, 0);
+  std::vector<float> over_height(n, 0.0f);  // the height of the top a vertex lies over
+  for (std::size_t v = 0; v < n; ++v) {
+    if (on_top[v] || supports.on_support[v]) continue;
+    const Eigen::Vector3f& p = mesh.positions[v];
+    for (const Top& t : tops) {
+      const float h = up->dot(p) - t.height;
+      if (h > kOverTopM && h < kOverTopMaxM && along(p - t.middle) <= t.reach + kTopMarginM) {
+        over[v] = 1;
+        over_height[v] = t.height;
+        break;
+      }
+    }
+  }
+  // A vertex over a top whose neighbour beyond the top's reach is higher than the fold belongs
+  // to something larger than the top holds (the wall of a bowl round its flat bottom): no thing
+  // standing on the top holds it.
+  std::vector<std::uint8_t> spills(n, 0);
+  for (const MeshEdge& e : graph.edges) {
+    const std::size_t a = static_cast<std::size_t>(e.a), b = static_cast<std::size_t>(e.b);
+    if (over[a] == over[b]) continue;
+    const std::size_t in = over[a] ? a : b, out = over[a] ? b : a;
+    if (!on_top[out] && !supports.on_support[out] &&
+        up->dot(mesh.positions[out]) > over_height[in] + kOverTopM) {
+      spills[in] = 1;
+    }
+  }
+  // What lies over the tops, segmented at every scale on its own (a graph of its vertices and
+  // the edges among them); every other vertex a segment of one, which no candidate is.
+  std::vector<std::int32_t> index(n, -1);
+  std::vector<std::int32_t> members;
+  for (std::size_t v = 0; v < n; ++v) {
+    if (!over[v]) continue;
+    index[v] = static_cast<std::int32_t>(members.size());
+    members.push_back(static_cast<std::int32_t>(v));
+  }
+  MeshGraph sub;
+  sub.vertex_count = members.size();
+  for (const MeshEdge& e : graph.edges) {  // indices keep their order: edges stay sorted
+    const std::int32_t a = index[static_cast<std::size_t>(e.a)];
+    const std::int32_t b = index[static_cast<std::size_t>(e.b)];
+    if (a >= 0 && b >= 0) sub.edges.push_back({a, b, e.weight, e.convex});
+  }
+  std::vector<Segmentation> segmentations =
+      segmentAtScales(sub, effective.scales, effective.min_size);
+  for (Segmentation& seg : segmentations) {
+    std::vector<std::int32_t> labels(n);
+    std::int32_t single = static_cast<std::int32_t>(seg.segment_count);
+    for (std::size_t v = 0; v < n; ++v) {
+      labels[v] = index[v] >= 0 ? seg.labels[static_cast<std::size_t>(index[v])] : single++;
+    }
+    seg.labels = std::move(labels);
+    seg.segment_count = static_cast<std::size_t>(single);
+  }
+  const std::vector<Segment> found = candidateSegments(
+      mesh, segmentations, std::max<std::size_t>(2, effective.candidate_min_size), config.filter);
+  const float fold_cos = cosOfDegrees(config.supports.foot_fold_deg);
+  for (const Segment& s : found) {
+    if (!std::all_of(s.vertices.begin(), s.vertices.end(), [&](std::int32_t v) {
+          return over[static_cast<std::size_t>(v)] && !spills[static_cast<std::size_t>(v)];
+        })) {
+      continue;
+    }
+    segments.push_back(s);
+    // The top it stands on: the highest under its lowest vertex.
+    const std::int32_t low = *std::min_element(
+        s.vertices.begin(), s.vertices.end(), [&](std::int32_t a, std::int32_t b) {
+          return up->dot(mesh.positions[static_cast<std::size_t>(a)]) <
+                 up->dot(mesh.positions[static_cast<std::size_t>(b)]);
+        });
+    const Eigen::Vector3f& low_p = mesh.positions[static_cast<std::size_t>(low)];
+    float top_height = -std::numeric_limits<float>::infinity();
+    for (const Top& t : tops) {
+      if (t.height < up->dot(low_p) && along(low_p - t.middle) <= t.reach + kTopMarginM) {
+        top_height = std::max(top_height, t.height);
+      }
+    }
+    // A small one also without its foot, the fold into the top (as appendTrimmedFeet does for
+    // the supports).
+    if (!config.supports.trim_feet) continue;
+    const auto inFold = [&](std::int32_t v) {
+      const std::size_t u = static_cast<std::size_t>(v);
+      return onPlane(*up, -top_height, mesh.positions[u], mesh.normals[u],
+                     config.supports.foot_fold_m, fold_cos);
+    };
+    std::optional<Segment> trimmed = withoutFoot(mesh, s, inFold, config, effective);
+    if (trimmed) segments.push_back(std::move(*trimmed));
   }
 }
 
@@ -304,6 +491,7 @@ SceneCandidates findCandidates(const TriangleMesh& mesh, const DiscoveryConfig& 
   out.segments =
       candidateSegments(mesh, segmentations, effective.candidate_min_size, config.filter);
   appendTrimmedFeet(mesh, supports, config, effective, out.segments);
+  appendOnLevelTops(mesh, graph, supports, config, effective, out.segments);
   t.candidate_count = out.segments.size();
   // A segment that several scales produce is one candidate: repeats would count twice in the
   // normalisation, in the catalog and among a segment's most similar ones for recurrence.

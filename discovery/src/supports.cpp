@@ -74,6 +74,11 @@ void SupportConfig::validate() const {
       !(foot_fold_deg >= 0.0f && foot_fold_deg <= 90.0f)) {
     throw std::invalid_argument("the foot's fold must be a distance >= 0 and an angle in [0, 90]");
   }
+  if (!(top_level_deg >= 0.0f && top_level_deg <= 90.0f) || !(top_flatness_m >= 0.0f) ||
+      !std::isfinite(top_flatness_m) || top_min_vertices < 1) {
+    throw std::invalid_argument(
+        "level tops need an angle in [0, 90], a flatness >= 0 and at least 1 vertex");
+  }
   if (max_planes < 0 || ransac_iterations < 1) {
     throw std::invalid_argument("supports need max_planes >= 0 and at least 1 RANSAC iteration");
   }

@@ -270,6 +270,40 @@ TEST(Discover, AMeshsViewUpComesFromTheCameraPathBesideIt) {
   EXPECT_FALSE(loadScene(dir / "mesh.ply").view_up.has_value());
 }
 
+// A box 12 cm square and 6 cm tall on a table (4 mm grid), a dome of radius 2 cm on its lid:
+// too small for segmentation to keep apart from the box (m_size), and the lid too small to be a
+// support. With the camera's up the lid is a level top, and the dome a candidate of its own.
+TEST(Discover, AThingOnABoxsLidIsACandidateOfItsOwn) {
+  const TriangleMesh mesh = testing::makeHeightField(201, 0.4f, [](float x, float y) {
+    if (std::max(std::abs(x), std::abs(y)) > 0.06f) return 0.0f;
+    const float t = std::clamp((0.02f - std::hypot(x - 0.02f, y)) / 0.01f, 0.0f, 1.0f);
+    return 0.06f + 0.015f * t * t * (3.0f - 2.0f * t);
+  });
+  std::vector<std::int32_t> dome;
+  for (std::size_t v = 0; v < mesh.positions.size(); ++v) {
+    if (mesh.positions[v].z() > 0.0605f) dome.push_back(static_cast<std::int32_t>(v));
+  }
+  auto bestIou = [&](const SceneCandidates& c) {
+    double best = 0.0;
+    for (const Segment& s : c.segments) {
+      std::vector<std::int32_t> both;
+      std::set_intersection(s.vertices.begin(), s.vertices.end(), dome.begin(), dome.end(),
+                            std::back_inserter(both));
+      best = std::max(best, static_cast<double>(both.size()) /
+                                static_cast<double>(s.vertices.size() + dome.size() - both.size()));
+    }
+    return best;
+  };
+  DiscoveryConfig config;
+  config.objects.context.view_up = Eigen::Vector3f(0.1f, 0.2f, 1.0f);
+  const SceneCandidates with = findCandidates(mesh, config);
+  EXPECT_GE(bestIou(with), 0.8);
+  config.supports.level_tops = false;
+  EXPECT_LT(bestIou(findCandidates(mesh, config)), 0.5);
+  // Without the camera's up there is no ground to call the lid level by.
+  EXPECT_LT(bestIou(findCandidates(mesh, DiscoveryConfig{})), 0.5);
+}
+
 TEST(Discover, ASmallObjectIsAlsoACandidateWithoutTheFoldAtItsFoot) {
   // A 2.5 cm tall bump of radius 3 cm on a table (4 mm grid), its lower part rounded into the
   // table over 1.5 cm, as fusion rounds the foot of a small object.

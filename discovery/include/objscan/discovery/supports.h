@@ -56,6 +56,18 @@ struct SupportConfig {
   float foot_fold_m = 0.008f;
   float foot_fold_deg = 50.0f;
   std::size_t foot_trim_vertices = 250;
+  /// Things standing on level tops that are no supports (a box's lid, a book: too small to be
+  /// support planes), offered as candidates of their own: on fused meshes with the camera's up,
+  /// the level tops (connected vertices off the supports whose normals lie within top_level_deg
+  /// of up, at least top_min_vertices at the paper's density, their heights within
+  /// top_flatness_m RMS) are cut from the rest, the mesh is segmented again at every scale, and
+  /// the segments that touch a top and lie over it join the candidates. Segmentation otherwise
+  /// joins a marble on a box to the box: it is smaller than m_size. Chosen on hard synthetic
+  /// seeds (docs/discovery.md, "Things on level tops").
+  bool level_tops = true;
+  float top_level_deg = 15.0f;
+  std::size_t top_min_vertices = 30;
+  float top_flatness_m = 0.003f;
   /// Plane hypotheses tried per plane, one vertex and its normal each: a plane holding 2 % of
   /// the vertices left is missed with probability 0.98^300 < 0.3 %.
   int ransac_iterations = 300;
