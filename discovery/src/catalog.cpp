@@ -653,7 +653,8 @@ struct Catalog::Impl {
                 Access::kRead);
     scenes_with_hash = prepare(
         "SELECT id, name, content_hash, vertex_count, settings FROM scenes "
-        "WHERE content_hash = ?1 ORDER BY id",
+        "WHERE content_hash = ?1 OR substr(content_hash, 1, length(?1) + 4) = ?1 || ' up ' "
+        "ORDER BY id",
         Access::kRead);
     segment_label = prepare(
         std::string("SELECT s.scene_id, l.label, l.labelled_by, l.labelled_at") +

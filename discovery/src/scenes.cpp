@@ -162,6 +162,18 @@ void takeFromCatalog(Catalog& catalog, const fs::path& catalog_path, std::int64_
 /// The settings for one scene: `config` with the scene's view up (which only the context reads,
 /// so the catalog's settings key does not change with it), and no trimmed feet for a single view
 /// (a scene is always one or the other, so the key still names its candidates).
+/// A scene's key in the catalog: its content hash and, with the camera's up, that up (rounded to
+/// 0.001): the candidates depend on it (SupportConfig::level_tops stand on the ground it finds),
+/// so the same mesh with another up is another scene. Catalog::scenesWithHash finds both by the
+/// hash alone.
+std::string catalogKey(const std::string& content_hash, const std::optional<Eigen::Vector3f>& up) {
+  if (content_hash.empty() || !up || !(up->norm() > 0.0f)) return content_hash;
+  const Eigen::Vector3f u = up->normalized();
+  char suffix[64];
+  std::snprintf(suffix, sizeof suffix, " up %.3f %.3f %.3f", u.x(), u.y(), u.z());
+  return content_hash + suffix;
+}
+
 DiscoveryConfig configOf(const DiscoveredScene& scene, const DiscoveryConfig& config) {
   DiscoveryConfig out = config;
   if (scene.view_up) out.objects.context.view_up = scene.view_up;
@@ -462,12 +474,12 @@ SceneDiscovery discoverScenes(std::vector<SceneInput> inputs,
     DiscoveredScene scene;
     scene.name = std::move(input.name);
     scene.mesh = std::move(input.mesh);
-    scene.content_hash = input.content_hash;
     scene.truth = std::move(input.truth);
     scene.whole_objects = std::move(input.whole_objects);
     scene.view_up = input.view_up;
     scene.single_view = input.single_view;
-    findOrRecall(scene, input.content_hash, options, settings, catalog ? &*catalog : nullptr,
+    scene.content_hash = catalogKey(input.content_hash, input.view_up);
+    findOrRecall(scene, scene.content_hash, options, settings, catalog ? &*catalog : nullptr,
                  static_cast<std::int64_t>(run.scenes.size()));
     run.scenes.push_back(std::move(scene));
     progress.advance();

@@ -13,6 +13,7 @@
 
 #include "objscan/core/ply_io.h"
 #include "objscan/core/trajectory.h"
+#include "objscan/discovery/catalog.h"
 #include "objscan/discovery/discover.h"
 #include "objscan/discovery/scenes.h"
 #include "objscan/discovery/segmentation.h"
@@ -357,6 +358,33 @@ TEST(Discover, ASmallObjectIsAlsoACandidateWithoutTheFoldAtItsFoot) {
   SceneDiscoveryOptions options;
   const SceneDiscovery run = discoverScenes(std::move(scenes), options);
   EXPECT_EQ(run.scenes.at(0).candidates.segments.size(), without.segments.size());
+}
+
+// Things on level tops are found by the ground the camera's up finds: the same mesh with another
+// up is another catalog scene, and a run with the first up again reuses the first.
+TEST(Discover, TheCatalogKeepsAMeshSeenWithAnotherUpApart) {
+  testing::TempDir dir;
+  SceneDiscoveryOptions options;
+  options.config.min_size = 200;  // a 4 mm grid
+  options.catalog = dir / "catalog.sqlite";
+  options.progress_label = "";
+  const auto run = [&](std::optional<Eigen::Vector3f> up) {
+    std::vector<SceneInput> scenes;
+    scenes.push_back(sceneFromMesh("a", table(true), "00000000000000aa"));
+    scenes.back().view_up = up;
+    return discoverScenes(std::move(scenes), options);
+  };
+  const SceneDiscovery upright = run(Eigen::Vector3f(0.0f, 0.0f, 2.0f));
+  EXPECT_EQ(upright.scenes[0].content_hash, "00000000000000aa up 0.000 0.000 1.000");
+  EXPECT_FALSE(upright.scenes[0].from_catalog);
+  EXPECT_FALSE(run(Eigen::Vector3f(0.0f, 1.0f, 0.0f)).scenes[0].from_catalog);
+  EXPECT_FALSE(run(std::nullopt).scenes[0].from_catalog);
+  EXPECT_TRUE(run(Eigen::Vector3f(0.0f, 0.0f, 1.0f)).scenes[0].from_catalog);
+  // The viewer finds every one of them by the mesh's hash.
+  const Catalog catalog(*options.catalog);
+  EXPECT_EQ(catalog.scenesWithHash("00000000000000aa").size(), 3u);
+  EXPECT_EQ(catalog.scenesWithHash("00000000000000aa up 0.000 1.000 0.000").size(), 1u);
+  EXPECT_TRUE(catalog.scenesWithHash("00000000000000a").empty());
 }
 
 TEST(Discover, AScenesViewUpReachesTheContextOfItsCandidates) {

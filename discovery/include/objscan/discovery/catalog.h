@@ -140,7 +140,8 @@ class Catalog {
   /// Every scene, in the order they were added.
   std::vector<CatalogScene> scenes() const;
 
-  /// The scenes with this content hash (any settings), in the order added.
+  /// The scenes with this content hash (any settings, and any camera's up: discoverScenes keys
+  /// a scene seen with one as "<hash> up X Y Z"), in the order added.
   std::vector<CatalogScene> scenesWithHash(const std::string& content_hash) const;
 
   /// The scene's segments in the order they were added (empty for an unknown scene); their

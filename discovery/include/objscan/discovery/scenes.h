@@ -115,7 +115,7 @@ struct SceneDiscoveryOptions {
 struct DiscoveredScene {
   std::string name;  ///< SceneInput::name
   TriangleMesh mesh;
-  std::string content_hash;    ///< SceneInput::content_hash
+  std::string content_hash;    ///< its catalog key: SceneInput::content_hash and the camera's up
   SceneCandidates candidates;  ///< recurrence filled in
   bool from_catalog = false;   ///< candidates and measures read from the catalog, not computed
   std::int64_t scene_id = 0;   ///< in the catalog, or the scene's index without one
