@@ -367,30 +367,35 @@ void appendOnLevelTops(const TriangleMesh& mesh, const MeshGraph& graph, const S
     t.reach = std::max(t.reach, along(mesh.positions[v] - t.middle));
   }
   for (Top& t : tops) t.height = up->dot(t.middle);
+  // A vertex lies over the highest top under it within reach; a top's own vertices may lie over
+  // a lower top (the lid of a box on a box).
   std::vector<std::uint8_t> over(n, 0);
   std::vector<float> over_height(n, 0.0f);  // the height of the top a vertex lies over
-  for (std::size_t v = 0; v < n; ++v) {
-    if (on_top[v] || supports.on_support[v]) continue;
-    const Eigen::Vector3f& p = mesh.positions[v];
-    for (const Top& t : tops) {
-      const float h = up->dot(p) - t.height;
-      if (h > kOverTopM && h < kOverTopMaxM && along(p - t.middle) <= t.reach + kTopMarginM) {
-        over[v] = 1;
-        over_height[v] = t.height;
-        break;
-      }
-    }
-  }
-  // A vertex over a top whose neighbour beyond the top's reach is higher than the fold belongs
-  // to something larger than the top holds (the wall of a bowl round its flat bottom): no thing
-  // standing on the top holds it.
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n),
+                    [&](const tbb::blocked_range<std::size_t>& range) {
+                      for (std::size_t v = range.begin(); v < range.end(); ++v) {
+                        if (supports.on_support[v]) continue;
+                        const Eigen::Vector3f& p = mesh.positions[v];
+                        for (const Top& t : tops) {
+                          const float h = up->dot(p) - t.height;
+                          if (h > kOverTopM && h < kOverTopMaxM &&
+                              along(p - t.middle) <= t.reach + kTopMarginM &&
+                              (!over[v] || t.height > over_height[v])) {
+                            over[v] = 1;
+                            over_height[v] = t.height;
+                          }
+                        }
+                      }
+                    });
+  // A vertex over a top with a neighbour that is over none and higher than that top's fold
+  // belongs to something larger than the top holds (the wall of a bowl round its flat bottom):
+  // no thing standing on the top holds it.
   std::vector<std::uint8_t> spills(n, 0);
   for (const MeshEdge& e : graph.edges) {
     const std::size_t a = static_cast<std::size_t>(e.a), b = static_cast<std::size_t>(e.b);
     if (over[a] == over[b]) continue;
     const std::size_t in = over[a] ? a : b, out = over[a] ? b : a;
-    if (!on_top[out] && !supports.on_support[out] &&
-        up->dot(mesh.positions[out]) > over_height[in] + kOverTopM) {
+    if (!supports.on_support[out] && up->dot(mesh.positions[out]) > over_height[in] + kOverTopM) {
       spills[in] = 1;
     }
   }

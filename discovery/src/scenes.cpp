@@ -1,6 +1,7 @@
 #include "objscan/discovery/scenes.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <map>
@@ -159,31 +160,44 @@ void takeFromCatalog(Catalog& catalog, const fs::path& catalog_path, std::int64_
   log::debug(scene.name + ": candidates from the catalog");
 }
 
-/// The settings for one scene: `config` with the scene's view up (which only the context reads,
-/// so the catalog's settings key does not change with it), and no trimmed feet for a single view
-/// (a scene is always one or the other, so the key still names its candidates).
-/// A scene's key in the catalog: its content hash and, with the camera's up, that up (rounded to
-/// 0.001): the candidates depend on it (SupportConfig::level_tops stand on the ground it finds),
-/// so the same mesh with another up is another scene. Catalog::scenesWithHash finds both by the
-/// hash alone.
-std::string catalogKey(const std::string& content_hash, const std::optional<Eigen::Vector3f>& up) {
-  if (content_hash.empty() || !up || !(up->norm() > 0.0f)) return content_hash;
-  const Eigen::Vector3f u = up->normalized();
-  char suffix[64];
-  std::snprintf(suffix, sizeof suffix, " up %.3f %.3f %.3f", u.x(), u.y(), u.z());
-  return content_hash + suffix;
-}
-
+/// The settings for one scene: `config` with the scene's view up, and for a single view no
+/// trimmed feet, no level tops, no standing holder for stacks and its own floating penalty (a
+/// scene is always one or the other, so the settings key still names its candidates; the up is in
+/// its catalog key, catalogKey).
 DiscoveryConfig configOf(const DiscoveredScene& scene, const DiscoveryConfig& config) {
   DiscoveryConfig out = config;
   if (scene.view_up) out.objects.context.view_up = scene.view_up;
   if (scene.single_view) {
     out.supports.trim_feet = false;
+    out.supports.level_tops = false;
     out.objects.context.stacks_need_standing_holder = false;
     out.objects.floating_penalty = out.objects.single_view_floating_penalty;
   }
   return out;
 }
+
+/// A scene's key in the catalog: its content hash and, where things on level tops are looked
+/// for (`config`, the scene's own from configOf), the camera's up rounded to 0.001: they stand
+/// on the ground it finds, so the same mesh with another up is another catalog scene.
+/// Catalog::scenesWithHash finds them all by the hash alone.
+std::string catalogKey(const std::string& content_hash, const DiscoveryConfig& config) {
+  const std::optional<Eigen::Vector3f>& up = config.objects.context.view_up;
+  if (content_hash.empty() || !config.supports.enabled || !config.supports.level_tops || !up ||
+      !(up->norm() > 0.0f)) {
+    return content_hash;
+  }
+  const Eigen::Vector3f u = up->normalized();
+  const auto rounded = [](float x) {  // + 0.0: never "-0.000"
+    return std::round(static_cast<double>(x) * 1000.0) / 1000.0 + 0.0;
+  };
+  char suffix[64];
+  std::snprintf(suffix, sizeof suffix, " up %.3f %.3f %.3f", rounded(u.x()), rounded(u.y()),
+                rounded(u.z()));
+  return content_hash + suffix;
+}
+
+/// The content hash a catalog key starts with (catalogKey).
+std::string hashOfKey(const std::string& key) { return key.substr(0, key.find(" up ")); }
 
 /// Candidates and measures of one scene: the catalog's when it knows the mesh with these
 /// settings, else found now (and added to the catalog).
@@ -249,10 +263,20 @@ Normalisation addRecurrenceAndNormalise(const std::vector<RecurrenceScene>& scen
   std::vector<RecurrenceEntry> entries;
   if (catalog) {
     // Only scenes measured with these settings: another run of the same mesh with other
-    // settings would otherwise be its own nearest "other scene".
+    // settings would otherwise be its own nearest "other scene". Nor the same mesh seen with
+    // another camera's up (catalogKey), for the same reason.
+    std::set<std::int64_t> own;
+    for (const RecurrenceScene& s : scenes) own.insert(s.scene_id);
+    const std::vector<CatalogScene> known = catalog->scenes();
+    std::set<std::string> own_hashes;
+    for (const CatalogScene& c : known) {
+      if (own.count(c.id) && !c.content_hash.empty()) own_hashes.insert(hashOfKey(c.content_hash));
+    }
     std::set<std::int64_t> comparable;
-    for (const CatalogScene& c : catalog->scenes()) {
-      if (c.settings == settings) comparable.insert(c.id);
+    for (const CatalogScene& c : known) {
+      if (c.settings != settings) continue;
+      if (!own.count(c.id) && own_hashes.count(hashOfKey(c.content_hash))) continue;
+      comparable.insert(c.id);
     }
     out.catalog_scenes = comparable.size();
     for (RecurrenceEntry& e : catalog->recurrenceEntries()) {
@@ -478,7 +502,7 @@ SceneDiscovery discoverScenes(std::vector<SceneInput> inputs,
     scene.whole_objects = std::move(input.whole_objects);
     scene.view_up = input.view_up;
     scene.single_view = input.single_view;
-    scene.content_hash = catalogKey(input.content_hash, input.view_up);
+    scene.content_hash = catalogKey(input.content_hash, configOf(scene, options.config));
     findOrRecall(scene, scene.content_hash, options, settings, catalog ? &*catalog : nullptr,
                  static_cast<std::int64_t>(run.scenes.size()));
     run.scenes.push_back(std::move(scene));

@@ -379,7 +379,19 @@ TEST(Discover, TheCatalogKeepsAMeshSeenWithAnotherUpApart) {
   EXPECT_FALSE(upright.scenes[0].from_catalog);
   EXPECT_FALSE(run(Eigen::Vector3f(0.0f, 1.0f, 0.0f)).scenes[0].from_catalog);
   EXPECT_FALSE(run(std::nullopt).scenes[0].from_catalog);
-  EXPECT_TRUE(run(Eigen::Vector3f(0.0f, 0.0f, 1.0f)).scenes[0].from_catalog);
+  const SceneDiscovery again = run(Eigen::Vector3f(0.0f, 0.0f, 1.0f));
+  EXPECT_TRUE(again.scenes[0].from_catalog);
+  // The other rows of this mesh are not other scenes: no segment recurs, as in the first run,
+  // when the catalog held nothing else.
+  for (const ShapeMeasures& m : again.scenes[0].candidates.measures) {
+    EXPECT_TRUE(std::isnan(m.recurrence)) << m.recurrence;
+  }
+  // A single view looks for no things on level tops: its key is the hash alone.
+  std::vector<SceneInput> view;
+  view.push_back(sceneFromMesh("a", table(true), "00000000000000aa"));
+  view.back().view_up = Eigen::Vector3f(0.0f, 0.0f, 1.0f);
+  view.back().single_view = true;
+  EXPECT_EQ(discoverScenes(std::move(view), options).scenes[0].content_hash, "00000000000000aa");
   // The viewer finds every one of them by the mesh's hash.
   const Catalog catalog(*options.catalog);
   EXPECT_EQ(catalog.scenesWithHash("00000000000000aa").size(), 3u);

@@ -26,7 +26,9 @@ namespace objscan::discovery {
 struct CatalogScene {
   std::int64_t id = 0;       ///< assigned by the catalog; never reused
   std::string name;          ///< for people: e.g. the mesh file's name
-  std::string content_hash;  ///< contentHash() of the mesh file
+  /// contentHash() of the mesh file, then " up X Y Z" for a scene whose candidates depend on
+  /// the camera's up (discoverScenes' catalog key)
+  std::string content_hash;
   std::size_t vertex_count = 0;
   /// A key of the discovery settings the segments were made with: a scene is found again only
   /// with the same hash and the same settings, so changing a setting means recomputing.

@@ -22,8 +22,9 @@ namespace objscan::discovery {
 enum class Footing : std::uint8_t {
   kNone,     ///< nothing holds it up: a piece of foliage, a fragment of a lamp or a wall's edge
   kSupport,  ///< its lowest part touches a support surface (a table, a shelf board, the floor)
-  /// its lowest part rests on another surface facing up, of a candidate that stands itself: an
-  /// object under it (a stack; ContextConfig::stacks_need_standing_holder)
+  /// its lowest part rests on another surface facing up, of a candidate that stands itself (an
+  /// object under it: a stack) or broad (a counter no support plane found); in a single view any
+  /// such surface (ContextConfig::stacks_need_standing_holder)
   kOnSurface,
   /// it lies on a support but rises no more than the support's noise: a patch of the table
   kPatch,

@@ -83,9 +83,10 @@ struct SceneRecord {
   /// it) when the scene is not a PLY file: a PCD view or a frame of a source become meshes only
   /// once objscan has read them, and view and render show this one. Empty for a PLY scene.
   std::string mesh_copy;
-  /// The scene's content hash as the catalog knows it (SceneInput::content_hash: of the PCD
-  /// file, or of the frame's depth, colour and camera); noted with mesh_copy, by which the viewer
-  /// finds the scene in the catalog. Empty otherwise.
+  /// The scene's key as the catalog knows it (DiscoveredScene::content_hash: the hash of the PCD
+  /// file, or of the frame's depth, colour and camera, and the camera's up where the candidates
+  /// depend on it); noted with mesh_copy, by which the viewer finds the scene in the catalog.
+  /// Empty otherwise.
   std::string content_hash;
   std::optional<std::size_t> vertices, faces, candidates, hypotheses;
   bool from_catalog = false;
