@@ -127,7 +127,6 @@ std::size_t strideFor(std::size_t size, std::size_t most) {
   return std::max<std::size_t>(1, (size + most - 1) / most);
 }
 
-
 /// Which candidates hold each vertex: what a candidate resting on a surface may rest on.
 class VertexSegments {
  public:

@@ -290,7 +290,6 @@ void appendTrimmedFeet(const TriangleMesh& mesh, const Supports& supports,
   }
 }
 
-
 /// A vertex lies over a level top when it is higher than the top by more than kOverTopM (the
 /// fold at a thing's foot begins under it) and less than kOverTopMaxM, and no further from the
 /// top's middle along it than the top reaches plus kTopMarginM.
