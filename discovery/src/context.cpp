@@ -199,10 +199,9 @@ class VertexSegments {
 constexpr float kBroadRingM = 0.03f;
 constexpr double kBroadCover = 0.25;
 
-bool broadLevelSurface(const TriangleMesh& mesh, const PointIndex& all_index,
-                       const UpPlane& plane, const Segment& s,
-                       const std::vector<std::int32_t>& surface, float gap, double mean_edge_m,
-                       float min_cos) {
+bool broadLevelSurface(const TriangleMesh& mesh, const PointIndex& all_index, const UpPlane& plane,
+                       const Segment& s, const std::vector<std::int32_t>& surface, float gap,
+                       double mean_edge_m, float min_cos) {
   if (surface.empty() || !(mean_edge_m > 0.0)) return false;
   Eigen::Vector3f centre = Eigen::Vector3f::Zero();
   float height = 0.0f;
@@ -533,7 +532,9 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
           std::sort(u.begin(), u.end());
           u.erase(std::unique(u.begin(), u.end()), u.end());
           if (u.size() < kMinSurfaceUnder) u.clear();
-          if (!config.stacks_need_standing_holder && !u.empty()) out[i].footing = Footing::kOnSurface;
+          if (!config.stacks_need_standing_holder && !u.empty()) {
+            out[i].footing = Footing::kOnSurface;
+          }
         }
       });
   if (!config.stacks_need_standing_holder) return out;

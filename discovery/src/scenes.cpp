@@ -322,7 +322,8 @@ void rankAll(SceneDiscovery& run, const ObjectnessModel& scorer, const Discovery
   for (std::size_t s = 0; s < run.scenes.size(); ++s) {
     DiscoveredScene& scene = run.scenes[s];
     Stopwatch watch;
-    for (Hypothesis& h : rankObjects(scene.mesh, scene.candidates, scorer, configOf(scene, config))) {
+    for (Hypothesis& h :
+         rankObjects(scene.mesh, scene.candidates, scorer, configOf(scene, config))) {
       run.ranked.push_back({s, std::move(h)});
       ++scene.hypotheses;
     }

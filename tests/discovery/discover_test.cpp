@@ -262,7 +262,8 @@ TEST(Discover, AMeshsViewUpComesFromTheCameraPathBesideIt) {
   pose.linear() = Eigen::AngleAxisf(-0.5236f, Eigen::Vector3f::UnitX()).toRotationMatrix();
   path.poses.push_back({1.0, pose});
   writeTumTrajectory(dir / "trajectory.txt", path);
-  const std::optional<Eigen::Vector3f> up = loadScene(dir.path()).view_up;  // the folder holds mesh.ply
+  // The folder holds mesh.ply.
+  const std::optional<Eigen::Vector3f> up = loadScene(dir.path()).view_up;
   ASSERT_TRUE(up.has_value());
   EXPECT_TRUE(up->isApprox(Eigen::Vector3f(0.0f, -std::cos(0.5236f), std::sin(0.5236f)), 1e-5f))
       << up->transpose();
