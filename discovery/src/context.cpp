@@ -162,7 +162,8 @@ class VertexSegments {
       std::size_t b = a;
       while (b < hits->size() && (*hits)[b] == (*hits)[a]) ++b;
       const std::uint32_t j = (*hits)[a];
-      if (b - a >= kMinSurfaceUnder && sharedCount(segments[j].vertices, own) * 10 <= own.size()) {
+      if (b - a >= kMinSurfaceUnder &&
+          sharedVertexCount(segments[j].vertices, own) * 10 <= own.size()) {
         if (context[j].footing == Footing::kSupport || context[j].footing == Footing::kOnSurface) {
           return true;
         }
@@ -173,21 +174,6 @@ class VertexSegments {
   }
 
  private:
-  static std::size_t sharedCount(const std::vector<std::int32_t>& a,
-                                 const std::vector<std::int32_t>& b) {
-    std::size_t count = 0;
-    for (std::size_t i = 0, j = 0; i < a.size() && j < b.size();) {
-      if (a[i] < b[j]) {
-        ++i;
-      } else if (b[j] < a[i]) {
-        ++j;
-      } else {
-        ++count, ++i, ++j;
-      }
-    }
-    return count;
-  }
-
   std::vector<std::size_t> start_;
   std::vector<std::uint32_t> segment_;
 };
@@ -211,10 +197,7 @@ bool broadLevelSurface(const TriangleMesh& mesh, const PointIndex& all_index, co
   }
   centre /= static_cast<float>(surface.size());
   height /= static_cast<float>(surface.size());
-  auto across = [&](const Eigen::Vector3f& p) {  // distance from the centre along the plane
-    const Eigen::Vector3f d = p - centre;
-    return (d - plane.up.dot(d) * plane.up).norm();
-  };
+  auto across = [&](const Eigen::Vector3f& p) { return alongPlane(plane.up, p - centre); };
   float radius = 0.0f;
   for (std::int32_t v : s.vertices) {
     radius = std::max(radius, across(mesh.positions[static_cast<std::size_t>(v)]));
@@ -540,6 +523,8 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
   if (!config.stacks_need_standing_holder) return out;
   // Twice: what stands on a support holds a stack's second storey, which holds its third.
   const VertexSegments holders(segments, n);
+  // Whether a candidate's surface is broad, once it is asked (-1 before): the same each storey.
+  std::vector<std::int8_t> broad(segments.size(), -1);
   for (int storey = 0; storey < 2; ++storey) {
     std::vector<std::uint8_t> held(segments.size(), 0);
     tbb::parallel_for(
@@ -548,9 +533,15 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
           std::vector<std::uint32_t> hits;
           for (std::size_t i = range.begin(); i < range.end(); ++i) {
             if (out[i].footing != Footing::kNone || under[i].empty()) continue;
-            held[i] = holders.holds(segments, out, under[i], segments[i].vertices, &hits) ||
-                      broadLevelSurface(mesh, all_index, plane, segments[i], under[i],
-                                        footGap(config, out[i]), out[i].mean_edge_m, min_cos);
+            if (holders.holds(segments, out, under[i], segments[i].vertices, &hits)) {
+              held[i] = 1;
+              continue;
+            }
+            if (broad[i] < 0) {
+              broad[i] = broadLevelSurface(mesh, all_index, plane, segments[i], under[i],
+                                           footGap(config, out[i]), out[i].mean_edge_m, min_cos);
+            }
+            held[i] = static_cast<std::uint8_t>(broad[i]);
           }
         });
     bool changed = false;

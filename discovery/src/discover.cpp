@@ -195,8 +195,14 @@ std::string settingsKey(const DiscoveryConfig& c) {
 
 EffectiveScales effectiveScales(const MeshGraph& graph, const TriangleMesh& mesh,
                                 const DiscoveryConfig& config) {
-  EffectiveScales e{config.scales, config.min_size, config.supports.min_vertices, 0,
-                    config.objects.evidence_vertices, config.supports.foot_trim_vertices, 0.0};
+  EffectiveScales e{config.scales,
+                    config.min_size,
+                    config.supports.min_vertices,
+                    0,
+                    config.objects.evidence_vertices,
+                    config.supports.foot_trim_vertices,
+                    config.supports.top_min_vertices,
+                    0.0};
   std::size_t cut_off_size = config.supports.min_cut_off_size;
   if (!graph.edges.empty()) {
     std::vector<float> lengths(graph.edges.size());
@@ -220,6 +226,7 @@ EffectiveScales effectiveScales(const MeshGraph& graph, const TriangleMesh& mesh
                               : scaled(config.objects.evidence_vertices);
     e.support_min_vertices = scaled(config.supports.min_vertices);
     e.foot_trim_vertices = scaled(config.supports.foot_trim_vertices);
+    e.top_min_vertices = scaled(config.supports.top_min_vertices);
     cut_off_size = scaled(cut_off_size);
   }
   e.candidate_min_size = config.supports.enabled ? std::min(e.min_size, cut_off_size) : e.min_size;
@@ -322,9 +329,6 @@ void appendOnLevelTops(const TriangleMesh& mesh, const MeshGraph& graph, const S
     sum[r] += h;
     sum_sq[r] += h * h;
   }
-  const double min_count = std::max<double>(
-      1.0, static_cast<double>(config.supports.top_min_vertices) *
-               static_cast<double>(effective.min_size) / static_cast<double>(config.min_size));
   std::vector<std::uint8_t> on_top(n, 0);
   bool any = false;
   for (std::size_t v = 0; v < n; ++v) {
@@ -332,7 +336,8 @@ void appendOnLevelTops(const TriangleMesh& mesh, const MeshGraph& graph, const S
     const std::size_t r = static_cast<std::size_t>(region[v]);
     const double mean = sum[r] / count[r];
     const double spread = std::sqrt(std::max(0.0, sum_sq[r] / count[r] - mean * mean));
-    on_top[v] = count[r] >= min_count && spread <= config.supports.top_flatness_m;
+    on_top[v] = count[r] >= static_cast<double>(effective.top_min_vertices) &&
+                spread <= config.supports.top_flatness_m;
     any = any || on_top[v];
   }
   if (!any) return;
@@ -358,7 +363,7 @@ void appendOnLevelTops(const TriangleMesh& mesh, const MeshGraph& graph, const S
     t.middle += mesh.positions[v];
     ++t.count;
   }
-  const auto along = [&](const Eigen::Vector3f& d) { return (d - up->dot(d) * *up).norm(); };
+  const auto along = [&](const Eigen::Vector3f& d) { return alongPlane(*up, d); };
   for (Top& t : tops) t.middle /= static_cast<float>(t.count);
   for (std::size_t v = 0; v < n; ++v) {
     if (!on_top[v]) continue;

@@ -25,4 +25,9 @@ inline bool onPlane(const Eigen::Vector3f& normal, float offset, const Eigen::Ve
          std::abs(normal.dot(n)) >= min_cos * length;
 }
 
+/// The length of `d` along a plane whose unit normal is `up` (its part across the normal).
+inline float alongPlane(const Eigen::Vector3f& up, const Eigen::Vector3f& d) {
+  return (d - up.dot(d) * up).norm();
+}
+
 }  // namespace objscan::discovery

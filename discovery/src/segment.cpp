@@ -174,7 +174,8 @@ std::vector<std::size_t> firstOfEach(const std::vector<Segment>& segments) {
   return firstEqual(lists, hashes);
 }
 
-double vertexIoU(const std::vector<std::int32_t>& a, const std::vector<std::int32_t>& b) {
+std::size_t sharedVertexCount(const std::vector<std::int32_t>& a,
+                              const std::vector<std::int32_t>& b) {
   std::size_t common = 0;
   auto i = a.begin(), j = b.begin();
   while (i != a.end() && j != b.end()) {
@@ -188,6 +189,11 @@ double vertexIoU(const std::vector<std::int32_t>& a, const std::vector<std::int3
       ++j;
     }
   }
+  return common;
+}
+
+double vertexIoU(const std::vector<std::int32_t>& a, const std::vector<std::int32_t>& b) {
+  const std::size_t common = sharedVertexCount(a, b);
   const std::size_t unite = a.size() + b.size() - common;
   return unite > 0 ? static_cast<double>(common) / static_cast<double>(unite) : 0.0;
 }

@@ -108,6 +108,7 @@ struct EffectiveScales {
   std::size_t candidate_min_size = 0;
   std::size_t evidence_vertices = 0;  ///< ObjectSetConfig::evidence_vertices, scaled
   std::size_t foot_trim_vertices = 0;  ///< SupportConfig::foot_trim_vertices, scaled
+  std::size_t top_min_vertices = 0;    ///< SupportConfig::top_min_vertices, scaled
   double median_edge_m = 0.0;
 };
 EffectiveScales effectiveScales(const MeshGraph& graph, const TriangleMesh& mesh,

@@ -59,6 +59,10 @@ std::vector<Segment> candidateSegments(const TriangleMesh& mesh,
 /// need computing once.
 std::vector<std::size_t> firstOfEach(const std::vector<Segment>& segments);
 
+/// How many vertices two sorted vertex lists share.
+std::size_t sharedVertexCount(const std::vector<std::int32_t>& a,
+                              const std::vector<std::int32_t>& b);
+
 /// Intersection over union of two increasing vertex-index lists.
 double vertexIoU(const std::vector<std::int32_t>& a, const std::vector<std::int32_t>& b);
 
