@@ -29,6 +29,9 @@ void ConvexityConfig::validate() const {
       throw std::invalid_argument("convexity tolerances must lie in [0, 90) degrees");
     }
   }
+  if (!(crease_deg >= 0.0f && crease_deg < 90.0f)) {
+    throw std::invalid_argument("the convexity crease angle must lie in [0, 90) degrees");
+  }
   if (min_patch_vertices < 3) {
     throw std::invalid_argument("a convexity patch needs at least 3 vertices to fit a normal");
   }
@@ -117,16 +120,23 @@ void patchColours(const std::vector<Eigen::Vector3f>& colours, Patches& p) {
 
 Patches makePatches(const TriangleMesh& mesh, const MeshGraph& graph,
                     const std::vector<std::uint8_t>& excluded, float size, int min_vertices,
-                    const std::vector<Eigen::Vector3f>& colours) {
+                    float crease_deg, const std::vector<Eigen::Vector3f>& colours) {
   const std::size_t n = mesh.positions.size();
   const auto out = [&](std::size_t v) { return !excluded.empty() && excluded[v] != 0; };
   std::vector<std::int64_t> cell(n);
   for (std::size_t v = 0; v < n; ++v) cell[v] = cellKey(mesh.positions[v], size);
-  // The connected pieces of each cell.
+  // The connected pieces of each cell, not joined across a sharp concave crease.
+  const float crease_cos =
+      crease_deg > 0.0f ? std::cos(crease_deg * static_cast<float>(M_PI) / 180.0f) : -2.0f;
+  const auto crease = [&](std::size_t a, std::size_t b) {
+    const Eigen::Vector3f& na = mesh.normals[a];
+    const Eigen::Vector3f& nb = mesh.normals[b];
+    return na.dot(nb) < crease_cos && (na - nb).dot(mesh.positions[a] - mesh.positions[b]) < 0.0f;
+  };
   DisjointSets sets(n);
   for (const MeshEdge& e : graph.edges) {
     const auto a = static_cast<std::size_t>(e.a), b = static_cast<std::size_t>(e.b);
-    if (out(a) || out(b) || cell[a] != cell[b]) continue;
+    if (out(a) || out(b) || cell[a] != cell[b] || crease(a, b)) continue;
     const std::int32_t ra = sets.find(e.a), rb = sets.find(e.b);
     if (ra != rb) sets.attach(std::max(ra, rb), std::min(ra, rb));
   }
@@ -285,7 +295,7 @@ std::vector<Segmentation> convexSegmentations(const TriangleMesh& mesh, const Me
   std::vector<Segmentation> out(config.patch_sizes_m.size() * per_size);
   tbb::parallel_for(std::size_t{0}, config.patch_sizes_m.size(), [&](std::size_t i) {
     const Patches patches = makePatches(mesh, graph, excluded, config.patch_sizes_m[i],
-                                        config.min_patch_vertices, colours);
+                                        config.min_patch_vertices, config.crease_deg, colours);
     for (std::size_t j = 0; j < config.tolerances_deg.size(); ++j) {
       for (std::size_t c = 0; c < limits.size(); ++c) {
         out[i * per_size + j * limits.size() + c] =

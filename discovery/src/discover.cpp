@@ -189,6 +189,7 @@ std::string settingsKey(const DiscoveryConfig& c) {
       s << " L" << c.convexity.colour_lightness_weight;
     }
     s << " / " << c.convexity.min_patch_vertices;
+    if (c.convexity.crease_deg > 0.0f) s << " crease " << c.convexity.crease_deg;
   }
   return s.str();
 }

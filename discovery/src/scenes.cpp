@@ -172,6 +172,7 @@ DiscoveryConfig configOf(const DiscoveredScene& scene, const DiscoveryConfig& co
     out.supports.level_tops = false;
     out.objects.context.stacks_need_standing_holder = false;
     out.objects.floating_penalty = out.objects.single_view_floating_penalty;
+    out.convexity.crease_deg = 0.0f;
   }
   return out;
 }

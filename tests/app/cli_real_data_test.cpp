@@ -68,8 +68,9 @@ TEST(CliRealData, EvalOnLabelledKinectScansFindsTheirObjects) {
 /// ignored): the
 /// labels move onto this fusion by the nearest labelled vertex within 1.5 cm, and each of the
 /// five hypotheses a user sees first is one of the nine objects, cut out at IoU 0.5 or better.
-/// Measured 2026-11-27: tape, front can, mouse, mug and keyboard at IoU 0.98 to 1.0, then the
-/// dice at 0.80; 7 of the 9 found at IoU 0.7.
+/// Measured 2026-11-28: tape, mouse, front can, mug and keyboard at IoU 0.98 to 1.0, then the
+/// dice at 0.84 and the book at 0.81; all 9 found at IoU 0.7 (7 before patches kept off creases:
+/// at least 8 must be, one lost to a borderline cut is tolerated).
 TEST(CliRealData, TheDemosTopFiveAreFiveOfTheNineLabelledObjectsOfItsDesk) {
   testing::TempDir dir;
   const std::string objects = std::string(OBJSCAN_DATA_DIR) + "/tum_fr2_desk_50/objects/";
@@ -81,6 +82,7 @@ TEST(CliRealData, TheDemosTopFiveAreFiveOfTheNineLabelledObjectsOfItsDesk) {
   std::ifstream in(out / "evaluation.json");
   const nlohmann::json evaluation = nlohmann::json::parse(in);
   EXPECT_EQ(evaluation.at("objects").get<int>(), 9);
+  EXPECT_GE(evaluation.at("found").get<int>(), 8);
   const nlohmann::json& ranks = evaluation.at("hypotheses");
   ASSERT_GE(ranks.size(), 5u);
   std::set<int> ids;
