@@ -55,7 +55,8 @@ struct Patches {
   std::vector<Eigen::Vector3f> colour;
   std::vector<float> colour_spread;
   std::vector<std::int32_t> size;
-  /// Neighbouring patches (a < b) and how many mesh edges join them.
+  /// Neighbouring patches (a < b) and how many mesh edges off creases join them (a patch too
+  /// small to fit a normal goes with the neighbour of most such edges, never across a crease).
   std::vector<std::pair<std::int32_t, std::int32_t>> pairs;
   std::vector<std::int32_t> pair_edges;
 };
@@ -125,13 +126,16 @@ Patches makePatches(const TriangleMesh& mesh, const MeshGraph& graph,
   const auto out = [&](std::size_t v) { return !excluded.empty() && excluded[v] != 0; };
   std::vector<std::int64_t> cell(n);
   for (std::size_t v = 0; v < n; ++v) cell[v] = cellKey(mesh.positions[v], size);
-  // The connected pieces of each cell, not joined across a sharp concave crease.
-  const float crease_cos =
-      crease_deg > 0.0f ? std::cos(crease_deg * static_cast<float>(M_PI) / 180.0f) : -2.0f;
+  // The connected pieces of each cell, not joined across a sharp concave crease. Normals are
+  // compared by direction (a mesh file's own need not be unit length); a zero one makes no crease.
+  const float crease_cos = std::cos(crease_deg * static_cast<float>(M_PI) / 180.0f);
   const auto crease = [&](std::size_t a, std::size_t b) {
+    if (!(crease_deg > 0.0f)) return false;
     const Eigen::Vector3f& na = mesh.normals[a];
     const Eigen::Vector3f& nb = mesh.normals[b];
-    return na.dot(nb) < crease_cos && (na - nb).dot(mesh.positions[a] - mesh.positions[b]) < 0.0f;
+    const float lengths = na.norm() * nb.norm();
+    return lengths > 0.0f && na.dot(nb) < crease_cos * lengths &&
+           (na / na.norm() - nb / nb.norm()).dot(mesh.positions[a] - mesh.positions[b]) < 0.0f;
   };
   DisjointSets sets(n);
   for (const MeshEdge& e : graph.edges) {
@@ -184,7 +188,7 @@ Patches makePatches(const TriangleMesh& mesh, const MeshGraph& graph,
     if (normal.norm() > 0.0) p.normal[k] = normal.normalized().cast<float>();
   });
   if (!colours.empty()) patchColours(colours, p);
-  // Neighbouring patches, with their shared edge counts.
+  // Neighbouring patches, with their shared edge counts (edges on creases not counted).
   std::unordered_map<std::uint64_t, std::int32_t> index;
   for (const MeshEdge& e : graph.edges) {
     const std::int32_t a = p.of_vertex[static_cast<std::size_t>(e.a)];
@@ -198,7 +202,9 @@ Patches makePatches(const TriangleMesh& mesh, const MeshGraph& graph,
       p.pairs.emplace_back(lo, hi);
       p.pair_edges.push_back(0);
     }
-    ++p.pair_edges[static_cast<std::size_t>(it->second)];
+    if (!crease(static_cast<std::size_t>(e.a), static_cast<std::size_t>(e.b))) {
+      ++p.pair_edges[static_cast<std::size_t>(it->second)];
+    }
   }
   return p;
 }

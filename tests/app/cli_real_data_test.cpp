@@ -82,6 +82,7 @@ TEST(CliRealData, TheDemosTopFiveAreFiveOfTheNineLabelledObjectsOfItsDesk) {
   std::ifstream in(out / "evaluation.json");
   const nlohmann::json evaluation = nlohmann::json::parse(in);
   EXPECT_EQ(evaluation.at("objects").get<int>(), 9);
+  EXPECT_EQ(evaluation.at("min_iou").get<double>(), 0.7);
   EXPECT_GE(evaluation.at("found").get<int>(), 8);
   const nlohmann::json& ranks = evaluation.at("hypotheses");
   ASSERT_GE(ranks.size(), 5u);

@@ -30,12 +30,13 @@ struct ConvexityConfig {
   /// concavity tolerance. One segmentation per tolerance and patch size.
   std::vector<float> tolerances_deg = {10.0f, 20.0f};
   /// A patch never crosses a mesh edge whose two vertex normals meet concavely at more than this
-  /// angle (degrees; 0: patches are the cells' connected pieces, whatever their shape). Without
-  /// it, a cell that holds a crease, where two touching objects meet or an object meets its
-  /// table, makes one patch of both sides, and its fitted normal, between the two, can join both.
-  /// 20 degrees, the larger tolerance: a crease that patches would not be joined across is not
-  /// hidden inside one either. Fused meshes only (DiscoveredScene's configOf sets 0 for single
-  /// views, whose per-vertex normals are too noisy: it cost mOSD learn 0.02 AP).
+  /// angle (degrees; 0: patches are the cells' connected pieces, whatever their shape), and a
+  /// patch too small to fit a normal is not joined across one either. Without it, a cell that
+  /// holds a crease, where two touching objects meet or an object meets its table, makes one
+  /// patch of both sides, and its fitted normal, between the two, can join both. 20 degrees, the
+  /// larger tolerance, chosen rather than tuned. Fused meshes only (DiscoveredScene's configOf
+  /// sets 0 for single views, whose per-vertex normals are too noisy: it cost mOSD learn 0.03
+  /// AP@0.5).
   float crease_deg = 20.0f;
   /// A patch fits its normal only from this many vertices; smaller ones join the neighbour they
   /// share the most edges with.
