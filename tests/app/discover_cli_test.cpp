@@ -701,11 +701,12 @@ TEST(EvalCli, RanksWithAModelFromTrainWhenGivenOne) {
   EXPECT_EQ(by_average["ranking"], "average");
   // Each scene has three round mounds, labelled whole (objects), and three elongated ones,
   // labelled on one half, which no segment matches at IoU 0.7: AP@0.7 is 0.5 at best, when the
-  // round ones rank first. Trained to tell the two apart, the model ranks them first; the average
-  // score does not.
+  // round ones rank first. Trained to tell the two apart, the model ranks them all first; the
+  // average score ranks an elongated one before a round one somewhere (AP@0.7 0.467 since the
+  // convexity patches keep off creases, under 0.4 before).
   const double model_ap = by_model["per_scene_objects"]["ap_0.7"].get<double>();
   EXPECT_NEAR(model_ap, 0.5, 1e-9);
-  EXPECT_LT(by_average["per_scene_objects"]["ap_0.7"].get<double>(), model_ap - 0.1);
+  EXPECT_LT(by_average["per_scene_objects"]["ap_0.7"].get<double>(), model_ap - 0.02);
   // A damaged model file: one line naming it, and no output folder.
   writeFileAtomically(dir / "bad.json", "{\"not\": \"a model\"}");
   expectOneErrorLine(eval("bad", {"--model", (dir / "bad.json").string()}), 2, "bad.json");
