@@ -330,15 +330,18 @@ void appendOnLevelTops(const TriangleMesh& mesh, const MeshGraph& graph, const S
     sum[r] += h;
     sum_sq[r] += h * h;
   }
+  std::vector<std::uint8_t> is_top(n, 0);  // per region
+  for (std::size_t r = 0; r < n; ++r) {
+    // top_min_vertices is at least 1, so regions without vertices are passed over too.
+    if (count[r] < static_cast<double>(effective.top_min_vertices)) continue;
+    const double mean = sum[r] / count[r];
+    const double spread = std::sqrt(std::max(0.0, sum_sq[r] / count[r] - mean * mean));
+    is_top[r] = spread <= config.supports.top_flatness_m;
+  }
   std::vector<std::uint8_t> on_top(n, 0);
   bool any = false;
   for (std::size_t v = 0; v < n; ++v) {
-    if (!level[v]) continue;
-    const std::size_t r = static_cast<std::size_t>(region[v]);
-    const double mean = sum[r] / count[r];
-    const double spread = std::sqrt(std::max(0.0, sum_sq[r] / count[r] - mean * mean));
-    on_top[v] = count[r] >= static_cast<double>(effective.top_min_vertices) &&
-                spread <= config.supports.top_flatness_m;
+    on_top[v] = level[v] && is_top[static_cast<std::size_t>(region[v])];
     any = any || on_top[v];
   }
   if (!any) return;
