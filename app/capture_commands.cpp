@@ -63,7 +63,10 @@ Command addSynthCommand(CLI::App& app) {
           },
           "NONNEGATIVE"))
       ->capture_default_str();
-  synth->add_option("--noise", synth_options.noise, "Depth-sensor noise model: on or off")
+  synth
+      ->add_option("--noise", synth_options.noise,
+                   "Depth-sensor model: on (random noise, dropouts, shadows), full (also the "
+                   "device's fixed depth distortion, which fusion does not average out) or off")
       ->capture_default_str();
   synth
       ->add_option("--clutter", synth_options.clutter,

@@ -12,8 +12,9 @@
 namespace objscan::app {
 
 void runSynth(const SynthOptions& options) {
-  if (options.noise != "on" && options.noise != "off") {
-    throw std::invalid_argument("--noise must be 'on' or 'off', not '" + options.noise + "'");
+  if (options.noise != "on" && options.noise != "off" && options.noise != "full") {
+    throw std::invalid_argument("--noise must be 'on', 'full' or 'off', not '" + options.noise +
+                                "'");
   }
   if (options.clutter != "plain" && options.clutter != "hard") {
     throw std::invalid_argument("--clutter must be 'plain' or 'hard', not '" + options.clutter +
@@ -30,7 +31,8 @@ void runSynth(const SynthOptions& options) {
   path_config.frames = options.frames;
   path_config.seed = options.seed;
   capture::SensorModelConfig sensor;
-  sensor.enabled = options.noise == "on";
+  sensor.enabled = options.noise != "off";
+  if (options.noise == "full") sensor = sensor.withDeviceDistortion();
   const Intrinsics intrinsics = options.intrinsics.empty() ? Intrinsics::xtionDefault()
                                                            : readIntrinsicsJson(options.intrinsics);
 

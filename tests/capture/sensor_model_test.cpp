@@ -188,6 +188,51 @@ TEST(SensorModel, RefusesViewsWithoutIncidence) {
                std::invalid_argument);
 }
 
+/// Mean reading of the 21 x 21 pixel window around (u, v); readings of 0 are skipped.
+double windowMean(const cv::Mat& depth, int u, int v) {
+  double sum = 0.0;
+  int n = 0;
+  for (int dv = -10; dv <= 10; ++dv) {
+    for (int du = -10; du <= 10; ++du) {
+      const float d = depth.at<float>(v + dv, u + du);
+      if (d == 0.0f) continue;
+      sum += d;
+      ++n;
+    }
+  }
+  return n == 0 ? 0.0 : sum / n;
+}
+
+TEST(SensorModel, DeviceDistortionBendsAWallIntoABowlThatDeepensWithDistance) {
+  const Intrinsics in = Intrinsics::xtionDefault();
+  // Without it (the default), a wall stays flat to float precision.
+  const cv::Mat flat = applySensorModel(wallAt(1.0f), in, quiet(), 1);
+  EXPECT_NEAR(windowMean(flat, 20, 20) - windowMean(flat, 320, 240), 0.0, 1e-6);
+
+  const SensorModelConfig bent = quiet().withDeviceDistortion();
+  double rise_at_1m = 0.0;
+  for (const float z : {1.0f, 2.0f}) {
+    SCOPED_TRACE("wall at " + std::to_string(z) + " m");
+    const cv::Mat depth = applySensorModel(wallAt(z), in, bent, 1);
+    const double centre = windowMean(depth, 320, 240);
+    const double corner = windowMean(depth, 20, 20);
+    // A corner reads deeper than the middle: the bowl. 0.8 % of the depth per metre at the
+    // half-diagonal, less the ripple (0.25 %), so 5.5-8.8 mm at 1 m.
+    const double rise = corner - centre;
+    if (z == 1.0f) {
+      EXPECT_GT(rise, 0.0055);
+      EXPECT_LT(rise, 0.0088);
+      rise_at_1m = rise;
+    } else {
+      // The relative error grows with depth, so the absolute one with its square.
+      EXPECT_NEAR(rise / rise_at_1m, 4.0, 0.1);
+    }
+    // Each reading is the wall's depth times the documented factor (the window's spread of the
+    // factor is well under 0.1 mm).
+    EXPECT_NEAR(corner, z * bent.distortionFactor(20, 20, z, in.width_px, in.height_px), 1e-4);
+  }
+}
+
 TEST(SensorModel, OffMeansUntouchedAndSeedsAreDeterministic) {
   const Intrinsics in = Intrinsics::xtionDefault();
   const render::RenderedView view =

@@ -242,6 +242,14 @@ TEST(ParseSynthSpec, DefaultsAreThoseOfObjscanSynth) {
   EXPECT_EQ(spec.path.frames, 300);
   EXPECT_EQ(spec.path.rate_hz, 30.0);
   EXPECT_TRUE(spec.sensor.enabled);
+  EXPECT_EQ(spec.sensor.distortion_radial, 0.0) << "noise=on has no fixed distortion";
+  const SynthSpec full = parseSynthSpec("synth:7,noise=full");
+  EXPECT_TRUE(full.sensor.enabled);
+  EXPECT_EQ(full.sensor.distortion_radial,
+            SensorModelConfig{}.withDeviceDistortion().distortion_radial);
+  EXPECT_EQ(full.sensor.distortion_wave,
+            SensorModelConfig{}.withDeviceDistortion().distortion_wave);
+  EXPECT_GT(full.sensor.distortion_radial, 0.0);
   EXPECT_FALSE(spec.scene.hard_clutter);
   EXPECT_TRUE(parseSynthSpec("synth:7,clutter=hard").scene.hard_clutter);
   EXPECT_FALSE(parseSynthSpec("synth:7,clutter=plain").scene.hard_clutter);
@@ -279,7 +287,7 @@ TEST(ParseSynthSpec, BadSpecsAreOneLineErrorsNamingTheBadPart) {
       {"synth:7,frames=99999999999", "frames must be a whole number >= 1"},
       {"synth:7,objects=31", "objects must be a whole number from 1 to 30, not '31'"},
       {"synth:7,objects=", "objects must be a whole number from 1 to 30, not ''"},
-      {"synth:7,noise=maybe", "noise must be 'on' or 'off', not 'maybe'"},
+      {"synth:7,noise=maybe", "noise must be 'on', 'full' or 'off', not 'maybe'"},
       {"synth:7,clutter=dense", "clutter must be 'plain' or 'hard', not 'dense'"},
       {"synth:7,preset=kitchen", "unknown scene preset 'kitchen'"},
       {"synth:7,colour=red", "unknown option 'colour'"},

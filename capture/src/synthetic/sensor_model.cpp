@@ -88,6 +88,22 @@ void SensorModelConfig::validate() const {
       grazing_max_rad > 1.5708) {
     fail("need 0 < grazing_start_rad < grazing_max_rad <= pi/2");
   }
+  if (!(std::abs(distortion_radial) <= 0.1) || !(std::abs(distortion_wave) <= 0.1)) {
+    fail("distortion_radial and distortion_wave must lie in [-0.1, 0.1]");
+  }
+}
+
+double SensorModelConfig::distortionFactor(double u_px, double v_px, double z_m, int width_px,
+                                           int height_px) const {
+  if (distortion_radial == 0.0 && distortion_wave == 0.0) return 1.0;
+  constexpr double kTwoPi = 6.283185307179586;
+  const double half_w = 0.5 * width_px, half_h = 0.5 * height_px;
+  const double du = u_px - half_w, dv = v_px - half_h;
+  const double rho2 = (du * du + dv * dv) / (half_w * half_w + half_h * half_h);
+  // Fixed phases: the pattern belongs to the device, not to a recording.
+  const double wave = std::cos(kTwoPi * 1.5 * u_px / width_px + 0.7) *
+                      std::cos(kTwoPi * 1.0 * v_px / height_px + 1.9);
+  return 1.0 + z_m * (distortion_radial * rho2 + distortion_wave * wave);
 }
 
 double SensorModelConfig::axialSigmaM(double z_m) const {
@@ -180,6 +196,7 @@ cv::Mat applySensorModel(const render::RenderedView& view, const Intrinsics& in,
         const double disparity = fb / z;
         z = fb / (std::round(disparity / config.disparity_step_px) * config.disparity_step_px);
       }
+      z *= config.distortionFactor(u, v, z, w, h);
       if (z < config.min_range_m || z > config.max_range_m) continue;
       row[u] = static_cast<float>(z);
     }

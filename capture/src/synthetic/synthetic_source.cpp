@@ -59,7 +59,7 @@ SynthSpec parseSynthSpec(const std::string& spec) {
   if (!text.starts_with(kPrefix)) {
     fail(spec,
          "a synthetic source is written synth:<seed>[,preset=desk|shelf|counter][,frames=N]"
-         "[,objects=K][,noise=on|off][,clutter=plain|hard]");
+         "[,objects=K][,noise=on|full|off][,clutter=plain|hard]");
   }
   std::vector<std::string_view> parts;  // the seed, then the options
   for (std::size_t begin = kPrefix.size();;) {
@@ -117,8 +117,11 @@ SynthSpec parseSynthSpec(const std::string& spec) {
       if (!objects) failValue(spec, key, "must be a whole number from 1 to 30", value);
       result.scene.objects = *objects;
     } else if (key == "noise") {
-      if (value != "on" && value != "off") failValue(spec, key, "must be 'on' or 'off'", value);
-      result.sensor.enabled = value == "on";
+      if (value != "on" && value != "off" && value != "full") {
+        failValue(spec, key, "must be 'on', 'full' or 'off'", value);
+      }
+      result.sensor.enabled = value != "off";
+      if (value == "full") result.sensor = result.sensor.withDeviceDistortion();
     } else if (key == "clutter") {
       if (value != "plain" && value != "hard") {
         failValue(spec, key, "must be 'plain' or 'hard'", value);
@@ -165,6 +168,9 @@ SyntheticSource::SyntheticSource(const SynthSpec& spec, const Intrinsics& intrin
       .append(std::to_string(path_.size()))
       .append(" frames");
   if (!spec_.sensor.enabled) description.append(", no sensor noise");
+  if (spec_.sensor.distortion_radial != 0.0 || spec_.sensor.distortion_wave != 0.0) {
+    description.append(", with depth distortion");
+  }
   info_.description = std::move(description);
   info_.frame_count = selection_.count(path_.size());
   info_.intrinsics = intrinsics_;
