@@ -1,5 +1,6 @@
 #include "objscan/discovery/supports.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -59,7 +60,56 @@ PlaneHypothesis bestPlane(const TriangleMesh& mesh, const pcl::Indices& sample, 
   return best;
 }
 
+/// Fits `plane`'s surface (SupportPlane::surface) to the vertices `member` marks: least squares,
+/// heights over the plane as a quadratic in the plane's coordinates.
+void fitSurface(const TriangleMesh& mesh, const std::vector<std::uint8_t>& member,
+                SupportPlane& plane) {
+  const Eigen::Vector3f& n = plane.normal;
+  Eigen::Index least = 0;
+  n.cwiseAbs().minCoeff(&least);
+  plane.axis_u = n.cross(Eigen::Vector3f::Unit(least)).normalized();
+  plane.axis_v = n.cross(plane.axis_u);
+  double su = 0.0, sv = 0.0;
+  std::size_t count = 0;
+  for (std::size_t v = 0; v < member.size(); ++v) {
+    if (!member[v]) continue;
+    su += plane.axis_u.dot(mesh.positions[v]);
+    sv += plane.axis_v.dot(mesh.positions[v]);
+    ++count;
+  }
+  if (count < 6) return;
+  plane.centre_u = static_cast<float>(su / static_cast<double>(count));
+  plane.centre_v = static_cast<float>(sv / static_cast<double>(count));
+
+  Eigen::Matrix<double, 6, 6> ata = Eigen::Matrix<double, 6, 6>::Zero();
+  Eigen::Matrix<double, 6, 1> atb = Eigen::Matrix<double, 6, 1>::Zero();
+  for (std::size_t v = 0; v < member.size(); ++v) {
+    if (!member[v]) continue;
+    const Eigen::Vector3f& p = mesh.positions[v];
+    const double u = plane.axis_u.dot(p) - plane.centre_u;
+    const double w = plane.axis_v.dot(p) - plane.centre_v;
+    Eigen::Matrix<double, 6, 1> row;
+    row << 1.0, u, w, u * u, u * w, w * w;
+    ata.noalias() += row * row.transpose();
+    atb.noalias() += row * static_cast<double>(plane.planeHeight(p));
+  }
+  const Eigen::Matrix<double, 6, 1> c = ata.ldlt().solve(atb);
+  if (!c.allFinite()) return;
+  plane.surface = c.cast<float>();
+  plane.curved = true;
+}
+
 }  // namespace
+
+float SupportPlane::height(const Eigen::Vector3f& p) const {
+  const float over_plane = planeHeight(p);
+  if (!curved) return over_plane;
+  const float u = axis_u.dot(p) - centre_u;
+  const float w = axis_v.dot(p) - centre_v;
+  const float bend = surface[0] + surface[1] * u + surface[2] * w + surface[3] * u * u +
+                     surface[4] * u * w + surface[5] * w * w;
+  return over_plane - bend;
+}
 
 void SupportConfig::validate() const {
   if (!(distance_m > 0.0f) || !std::isfinite(distance_m)) {
@@ -104,6 +154,7 @@ Supports findSupports(const TriangleMesh& mesh, const MeshGraph& graph, const Su
   // planes are fitted to the rest, so that no plane is found twice.
   std::vector<std::uint8_t> taken(n, 0);
   std::vector<std::uint8_t> on_plane(n, 0);
+  std::vector<std::uint8_t> near_this(n, 0);  // taken by this plane
   for (int k = 0; k < config.max_planes; ++k) {
     std::size_t remaining = 0;
     for (std::size_t v = 0; v < n; ++v) remaining += taken[v] ? 0 : 1;
@@ -137,27 +188,54 @@ Supports findSupports(const TriangleMesh& mesh, const MeshGraph& graph, const Su
 
     std::size_t near = 0;
     std::fill(on_plane.begin(), on_plane.end(), 0);
+    std::fill(near_this.begin(), near_this.end(), 0);
     for (std::size_t v = 0; v < n; ++v) {
       if (taken[v] || std::abs(normal.dot(mesh.positions[v]) + offset) > config.distance_m) {
         continue;
       }
       taken[v] = 1;
+      near_this[v] = 1;
       ++near;
       if (std::abs(normal.dot(mesh.normals[v])) >= min_cos) on_plane[v] = 1;
     }
     // The largest plane left is smaller than a support: so is every later one.
     if (near < min_vertices) break;
-    const std::vector<std::int32_t> region = connectedRegions(graph, on_plane);
-    std::vector<std::size_t> size(n, 0);
-    for (std::size_t v = 0; v < n; ++v) size[static_cast<std::size_t>(region[v])] += on_plane[v];
-    SupportPlane plane{normal, offset, 0};
-    for (std::size_t v = 0; v < n; ++v) {
-      if (on_plane[v] && size[static_cast<std::size_t>(region[v])] >= min_vertices) {
-        out.on_support[v] = 1;
-        ++plane.vertex_count;
+    SupportPlane plane;
+    plane.normal = normal;
+    plane.offset = offset;
+    // The support regions: the connected regions of plane vertices large enough. Measured once
+    // against the plane; then, with the regions' own surface measured (SupportPlane::surface),
+    // again against that surface, within the same band: a bent table's vertices are all its own,
+    // and what stands on it is cut at the same height over it everywhere.
+    std::vector<std::uint8_t> member(n, 0);
+    const auto measureRegions = [&] {
+      const std::vector<std::int32_t> region = connectedRegions(graph, on_plane);
+      std::vector<std::size_t> size(n, 0);
+      for (std::size_t v = 0; v < n; ++v) size[static_cast<std::size_t>(region[v])] += on_plane[v];
+      plane.vertex_count = 0;
+      for (std::size_t v = 0; v < n; ++v) {
+        member[v] = on_plane[v] && size[static_cast<std::size_t>(region[v])] >= min_vertices;
+        plane.vertex_count += member[v];
       }
+    };
+    measureRegions();
+    if (plane.vertex_count == 0) continue;
+    fitSurface(mesh, member, plane);
+    if (plane.curved) {
+      for (std::size_t v = 0; v < n; ++v) {
+        if (out.on_support[v] || (taken[v] && !near_this[v])) continue;  // an earlier plane's
+        const bool near_surface = std::abs(plane.height(mesh.positions[v])) <= config.distance_m;
+        if (!near_surface) {
+          on_plane[v] = 0;
+          continue;
+        }
+        taken[v] = 1;
+        on_plane[v] = std::abs(normal.dot(mesh.normals[v])) >= min_cos;
+      }
+      measureRegions();
     }
-    if (plane.vertex_count > 0) out.planes.push_back(plane);
+    for (std::size_t v = 0; v < n; ++v) out.on_support[v] |= member[v];
+    if (plane.vertex_count > 0) out.planes.push_back(std::move(plane));
   }
   // Where two supports meet (a shelf board and the wall behind it), fusion rounds the fold, and
   // its vertices, tilted away from both planes, belong to neither. Left so, the fold would be a
@@ -167,7 +245,8 @@ Supports findSupports(const TriangleMesh& mesh, const MeshGraph& graph, const Su
       if (out.on_support[v]) continue;
       int near_planes = 0;
       for (const SupportPlane& p : out.planes) {
-        near_planes += std::abs(p.normal.dot(mesh.positions[v]) + p.offset) <= config.distance_m;
+        near_planes += std::min(std::abs(p.planeHeight(mesh.positions[v])),
+                                std::abs(p.height(mesh.positions[v]))) <= config.distance_m;
       }
       if (near_planes >= 2) {
         out.on_support[v] = 1;

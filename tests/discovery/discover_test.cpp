@@ -5,8 +5,8 @@
 #include <algorithm>
 #include <cmath>
 #include <optional>
-#include <stdexcept>
 #include <set>
+#include <stdexcept>
 #include <vector>
 
 #include <Eigen/Geometry>
@@ -143,7 +143,7 @@ TEST(Discover, MatchesMeasuringEveryCandidateOnItsOwn) {
   DiscoveryConfig config;
   config.scales.push_back(config.scales[3]);  // a scale twice: its candidates all repeat
   config.scale_with_density = false;          // the reference below uses the scales as given
-  config.convexity.enabled = false;  // the reference below segments at the FH scales only
+  config.convexity.enabled = false;           // the reference below segments at the FH scales only
   const MeshGraph graph = buildMeshGraph(mesh);
   const VertexEdges by_vertex = vertexEdges(graph);
   // Segmentation sees the table cut from the mounds; the measures, the graph as it is.
@@ -485,6 +485,9 @@ TEST(Discover, TheSettingsKeyChangesWithTheColourCuts) {
   DiscoveryConfig no_crease = off;
   no_crease.convexity.crease_deg = 0.0f;
   EXPECT_EQ(settingsKey(no_crease).find("crease"), std::string::npos) << settingsKey(no_crease);
+  // Supports measured against their own (bent) surface: a catalog of scenes measured against the
+  // plane alone measures them again.
+  EXPECT_NE(settingsKey(off).find(" surface quadratic"), std::string::npos) << settingsKey(off);
 }
 
 TEST(Discover, AverageScoreZNormalisesAndOrientsTheMeasures) {

@@ -167,8 +167,9 @@ TEST(Supports, TheFoldBetweenTwoSupportsIsASupportToo) {
 TEST(Supports, EveryBoardOfAShelfIsFoundThoughEachIsAFewPercentOfTheScene) {
   // A floor (1.6 m square, 1 cm grid), clutter beside it (500 chips 5 cm square, turned every
   // way: no plane holds a support's worth of them) and three shelf boards 0.24 m square at 0.45,
-  // 0.85 and 1.25 m: once the floor is taken, each board is under 4 % of what is left. A plane hypothesis drawn from three points
-  // needs all three on one board (1 in 17,000 draws); one vertex with its normal needs 1 in 26.
+  // 0.85 and 1.25 m: once the floor is taken, each board is under 4 % of what is left. A plane
+  // hypothesis drawn from three points needs all three on one board (1 in 17,000 draws); one vertex
+  // with its normal needs 1 in 26.
   TriangleMesh mesh = makeHeightField(161, 0.8f, [](float, float) { return 0.0f; });
   auto append = [&mesh](TriangleMesh part, const Eigen::Vector3f& shift) {
     const std::int32_t first = static_cast<std::int32_t>(mesh.positions.size());
@@ -207,6 +208,39 @@ TEST(Supports, EveryBoardOfAShelfIsFoundThoughEachIsAFewPercentOfTheScene) {
   }
   std::sort(found.begin(), found.end());
   for (std::size_t k = 0; k < 3; ++k) EXPECT_NEAR(found[k], heights[k], 1e-3f);
+}
+
+TEST(Supports, FollowTheTableWhereFusionBendsIt) {
+  // The table of tableWithMounds bent as a fusion bends one (the sensor's fixed depth error,
+  // here exaggerated): a bowl 2.2 cm deeper in the middle than at the corners. A plane fitted to
+  // it lies some 7 mm over the middle, so the corners are more than 1 cm off it.
+  const auto bend = [](float x, float y) { return 0.07f * (x * x + y * y); };
+  const TriangleMesh mesh = makeHeightField(201, 0.4f, [&](float x, float y) {
+    return 0.25f + bend(x, y) + std::max(mound(x, y, -0.15f, 0.08f), mound(x, y, 0.15f, 0.06f));
+  });
+  const Supports s = findSupports(mesh, buildMeshGraph(mesh), SupportConfig{}, 3000);
+  ASSERT_EQ(s.planes.size(), 1u);
+  const SupportPlane& plane = s.planes[0];
+  EXPECT_TRUE(plane.curved);
+  std::size_t table = 0, table_on = 0, off_the_plane = 0;
+  for (std::size_t i = 0; i < mesh.positions.size(); ++i) {
+    const Eigen::Vector3f& p = mesh.positions[i];
+    const float over_table = p.z() - 0.25f - bend(p.x(), p.y());
+    // Everything 1 cm or more above the bent table is off it.
+    if (over_table > 0.01f) {
+      EXPECT_EQ(s.on_support[i], 0) << "vertex " << i << ", " << over_table << " m up";
+    }
+    if (std::hypot(p.x() + 0.15f, p.y()) > 0.09f && std::hypot(p.x() - 0.15f, p.y()) > 0.07f) {
+      // The table clear of the mounds' feet: all of it on the support, and its height over the
+      // support's own surface within 1.5 mm of none.
+      ++table;
+      table_on += s.on_support[i];
+      EXPECT_NEAR(plane.height(p), 0.0f, 0.0015f) << p.transpose();
+      off_the_plane += std::abs(plane.planeHeight(p)) > 0.01f;
+    }
+  }
+  EXPECT_EQ(table_on, table);
+  EXPECT_GT(off_the_plane, table / 50) << "the plane alone would have left the corners out";
 }
 
 TEST(Supports, NoSupportOnCurvedOrSmallSurfaces) {

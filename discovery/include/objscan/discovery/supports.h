@@ -80,6 +80,25 @@ struct SupportPlane {
   Eigen::Vector3f normal = Eigen::Vector3f::UnitZ();  ///< unit length
   float offset = 0.0f;                                ///< normal . p + offset = 0 on the plane
   std::size_t vertex_count = 0;                       ///< vertices of its support regions
+
+  /// The support's own surface: its height over the plane, a quadratic in the coordinates along
+  /// `axis_u` and `axis_v` less `centre_u` and `centre_v` (coefficients of 1, u, v, u^2, uv, v^2),
+  /// fitted to the support's vertices. A fused table is not flat: the sensor's fixed depth error
+  /// bends it by several millimetres (real fusions lie 3-7 mm off their fitted plane), which is
+  /// most of the supports' 1 cm band, and a far floor or wall by centimetres. Beyond the vertices
+  /// it was fitted to, it goes on bending as the quadratic does (the sensor's error is smooth);
+  /// only vertices connected to the support and facing as it does can join it there. Not
+  /// `curved`: the plane itself.
+  Eigen::Vector3f axis_u = Eigen::Vector3f::UnitX();
+  Eigen::Vector3f axis_v = Eigen::Vector3f::UnitY();
+  float centre_u = 0.0f, centre_v = 0.0f;
+  Eigen::Matrix<float, 6, 1> surface = Eigen::Matrix<float, 6, 1>::Zero();
+  bool curved = false;
+
+  /// The height of `p` over the plane: normal . p + offset.
+  float planeHeight(const Eigen::Vector3f& p) const { return normal.dot(p) + offset; }
+  /// The height of `p` over the support's own surface (over the plane when not `curved`).
+  float height(const Eigen::Vector3f& p) const;
 };
 
 struct Supports {
