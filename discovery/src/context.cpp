@@ -21,11 +21,13 @@ namespace {
 
 /// A support plane turned so that its normal points to the free side, where the things standing
 /// on it are: the side its own vertices' normals face (fused and single-view normals point out of
-/// the surface, towards where the camera was).
+/// the surface, towards where the camera was). Heights are over the support's own surface
+/// (SupportPlane::height), which a fused table bends away from its plane.
 struct UpPlane {
   Eigen::Vector3f up;
-  float offset;
-  float height(const Eigen::Vector3f& p) const { return up.dot(p) + offset; }
+  const SupportPlane* support;
+  float sign;  ///< +1 when `up` is the support's normal, -1 when it is turned
+  float height(const Eigen::Vector3f& p) const { return sign * support->height(p); }
 };
 
 /// A support vertex belongs to a plane's own surface (for its orientation) within this distance
@@ -38,10 +40,10 @@ std::vector<UpPlane> orientedPlanes(const TriangleMesh& mesh, const Supports& su
     double facing = 0.0;
     for (std::size_t v = 0; v < mesh.positions.size(); ++v) {
       if (!supports.on_support[v]) continue;
-      if (std::abs(p.normal.dot(mesh.positions[v]) + p.offset) > kOwnSurfaceM) continue;
+      if (std::abs(p.height(mesh.positions[v])) > kOwnSurfaceM) continue;
       facing += p.normal.dot(mesh.normals[v]);
     }
-    planes.push_back(facing >= 0.0 ? UpPlane{p.normal, p.offset} : UpPlane{-p.normal, -p.offset});
+    planes.push_back(facing >= 0.0 ? UpPlane{p.normal, &p, 1.0f} : UpPlane{-p.normal, &p, -1.0f});
   }
   return planes;
 }

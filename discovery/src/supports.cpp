@@ -6,6 +6,8 @@
 #include <random>
 #include <stdexcept>
 
+#include <Eigen/Eigenvalues>
+
 // PCL's templates are compiled here, with this build's flags, rather than taken precompiled
 // from libpcl_sample_consensus: Eigen allocates differently under AddressSanitizer (it no longer
 // trusts malloc's alignment), so an Eigen vector that the precompiled library allocates cannot
@@ -60,6 +62,10 @@ PlaneHypothesis bestPlane(const TriangleMesh& mesh, const pcl::Indices& sample, 
   return best;
 }
 
+/// A support's surface is fitted only when its vertices spread at least this far (standard
+/// deviation) across its narrowest direction; a table 30 cm deep spreads 8.7 cm.
+constexpr double kMinSurfaceSpreadM = 0.05;
+
 /// Fits `plane`'s surface (SupportPlane::surface) to the vertices `member` marks: least squares,
 /// heights over the plane as a quadratic in the plane's coordinates.
 void fitSurface(const TriangleMesh& mesh, const std::vector<std::uint8_t>& member,
@@ -80,6 +86,19 @@ void fitSurface(const TriangleMesh& mesh, const std::vector<std::uint8_t>& membe
   if (count < 6) return;
   plane.centre_u = static_cast<float>(su / static_cast<double>(count));
   plane.centre_v = static_cast<float>(sv / static_cast<double>(count));
+  // A support narrow in some direction (a long board seen edge-on, a strip of table between
+  // things) fixes no bend across it: its square terms would be noise, and they grow fast beside
+  // it. It stays flat.
+  Eigen::Matrix2d spread = Eigen::Matrix2d::Zero();
+  for (std::size_t v = 0; v < member.size(); ++v) {
+    if (!member[v]) continue;
+    const Eigen::Vector2d d(plane.axis_u.dot(mesh.positions[v]) - plane.centre_u,
+                            plane.axis_v.dot(mesh.positions[v]) - plane.centre_v);
+    spread.noalias() += d * d.transpose();
+  }
+  spread /= static_cast<double>(count);
+  const double narrowest = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(spread).eigenvalues()(0);
+  if (!(narrowest >= kMinSurfaceSpreadM * kMinSurfaceSpreadM)) return;
 
   Eigen::Matrix<double, 6, 6> ata = Eigen::Matrix<double, 6, 6>::Zero();
   Eigen::Matrix<double, 6, 1> atb = Eigen::Matrix<double, 6, 1>::Zero();

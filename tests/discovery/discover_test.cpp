@@ -316,55 +316,74 @@ TEST(Discover, AThingOnABoxsLidIsACandidateOfItsOwn) {
   EXPECT_LT(bestIou(findCandidates(mesh, no_up)), 0.5);
 }
 
-TEST(Discover, ASmallObjectIsAlsoACandidateWithoutTheFoldAtItsFoot) {
-  // A 2.5 cm tall bump of radius 3 cm on a table (4 mm grid), its lower part rounded into the
-  // table over 1.5 cm, as fusion rounds the foot of a small object.
-  TriangleMesh mesh = testing::makeHeightField(201, 0.4f, [](float x, float y) {
-    const float t = std::clamp((0.03f - std::hypot(x, y)) / 0.015f, 0.0f, 1.0f);
-    return 0.025f * t * t * (3.0f - 2.0f * t);
+/// A 2.5 cm tall bump of radius 3 cm at (`cx`, `cy`) on a table (4 mm grid), its lower part
+/// rounded into the table over 1.5 cm, as fusion rounds the foot of a small object; the table
+/// bent by `bend`.
+TriangleMesh bumpOnTable(float (*bend)(float, float), float cx, float cy) {
+  return testing::makeHeightField(201, 0.4f, [&](float x, float y) {
+    const float t = std::clamp((0.03f - std::hypot(x - cx, y - cy)) / 0.015f, 0.0f, 1.0f);
+    return bend(x, y) + 0.025f * t * t * (3.0f - 2.0f * t);
   });
-  // The fold: vertices off the table up to 8 mm high, their normals within 50 degrees of up.
-  auto inFold = [&](std::int32_t v) {
-    return mesh.positions[v].z() <= 0.008f && mesh.normals[v].z() >= std::cos(0.8727f);
-  };
-  auto trimmed = [&](const Segment& s) {
-    std::vector<std::int32_t> kept;
-    for (std::int32_t v : s.vertices) {
-      if (!inFold(v)) kept.push_back(v);
-    }
-    return kept;
-  };
-  auto bumps = [&](const std::vector<Segment>& segments) {  // those within the bump's radius
-    std::vector<const Segment*> out;
-    for (const Segment& s : segments) {
-      if (std::all_of(s.vertices.begin(), s.vertices.end(), [&](std::int32_t v) {
-            return mesh.positions[v].head<2>().norm() < 0.031f;
-          })) {
-        out.push_back(&s);
+}
+
+TEST(Discover, ASmallObjectIsAlsoACandidateWithoutTheFoldAtItsFoot) {
+  // On a flat table, and on one bent as a fusion bends it (exaggerated): a bowl, the bump on its
+  // rim, where the table lies about 1 cm over its plane; a fold measured against the plane would
+  // miss the bump's foot. It is measured against the table's own surface.
+  float (*const flat)(float, float) = [](float, float) { return 0.0f; };
+  float (*const bowl)(float, float) = [](float x, float y) { return 0.1f * (x * x + y * y); };
+  const Eigen::Vector2f centre(0.28f, 0.28f);
+  for (float (*bend)(float, float) : {flat, bowl}) {
+    SCOPED_TRACE(bend == flat ? "flat table" : "bent table");
+    const TriangleMesh mesh = bumpOnTable(bend, centre.x(), centre.y());
+    // The fold: vertices off the table up to 8 mm high, their normals within 50 degrees of up.
+    auto inFold = [&](std::int32_t v) {
+      const Eigen::Vector3f& p = mesh.positions[v];
+      return p.z() - bend(p.x(), p.y()) <= 0.008f && mesh.normals[v].z() >= std::cos(0.8727f);
+    };
+    auto trimmed = [&](const Segment& s) {
+      std::vector<std::int32_t> kept;
+      for (std::int32_t v : s.vertices) {
+        if (!inFold(v)) kept.push_back(v);
       }
+      return kept;
+    };
+    auto bumps = [&](const std::vector<Segment>& segments) {  // those within the bump's radius
+      std::vector<const Segment*> out;
+      for (const Segment& s : segments) {
+        if (std::all_of(s.vertices.begin(), s.vertices.end(), [&](std::int32_t v) {
+              return (mesh.positions[v].head<2>() - centre).norm() < 0.031f;
+            })) {
+          out.push_back(&s);
+        }
+      }
+      return out;
+    };
+    // The patches' crease rule is off, as in a single view: a segment it cuts can be the very
+    // segment a trim gives, which would be counted once; here the feet are what is tested.
+    DiscoveryConfig on;
+    on.convexity.crease_deg = 0.0f;
+    const SceneCandidates with = findCandidates(mesh, on);
+    DiscoveryConfig off = on;
+    off.supports.trim_feet = false;
+    const SceneCandidates without = findCandidates(mesh, off);
+    // Without trimming, the bump's candidates all hold fold vertices; with it, each of those
+    // small enough comes again without them.
+    std::size_t untrimmed = 0, found = 0;
+    for (const Segment* s : bumps(without.segments)) {
+      const std::vector<std::int32_t> kept = trimmed(*s);
+      ASSERT_LT(kept.size(), s->vertices.size());
+      ++untrimmed;
+      for (const Segment* t : bumps(with.segments)) found += t->vertices == kept;
     }
-    return out;
-  };
-  // The patches' crease rule is off, as in a single view: a segment it cuts can be the very
-  // segment a trim gives, which would be counted once; here the feet are what is tested.
-  DiscoveryConfig on;
-  on.convexity.crease_deg = 0.0f;
-  const SceneCandidates with = findCandidates(mesh, on);
-  DiscoveryConfig off = on;
-  off.supports.trim_feet = false;
-  const SceneCandidates without = findCandidates(mesh, off);
-  // Without trimming, the bump's candidates all hold fold vertices; with it, each of those small
-  // enough comes again without them.
-  std::size_t untrimmed = 0, found = 0;
-  for (const Segment* s : bumps(without.segments)) {
-    const std::vector<std::int32_t> kept = trimmed(*s);
-    ASSERT_LT(kept.size(), s->vertices.size());
-    ++untrimmed;
-    for (const Segment* t : bumps(with.segments)) found += t->vertices == kept;
+    ASSERT_GT(untrimmed, 0u);
+    EXPECT_EQ(found, untrimmed);
+    EXPECT_EQ(with.segments.size(), without.segments.size() + untrimmed);
   }
-  ASSERT_GT(untrimmed, 0u);
-  EXPECT_EQ(found, untrimmed);
-  EXPECT_EQ(with.segments.size(), without.segments.size() + untrimmed);
+  const TriangleMesh mesh = bumpOnTable(flat, 0.0f, 0.0f);
+  DiscoveryConfig off;
+  off.convexity.crease_deg = 0.0f;
+  off.supports.trim_feet = false;
   // A single view's scene is not trimmed: fusion did not round it (nor are its convexity
   // patches kept off creases, whatever the options say).
   SceneInput view = sceneFromMesh("view", mesh);

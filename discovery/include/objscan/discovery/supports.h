@@ -23,8 +23,9 @@ namespace objscan::discovery {
 
 struct SupportConfig {
   bool enabled = true;
-  /// A vertex lies on a plane within this distance: about two voxels of KinFu's 3 m / 512
-  /// volume, as fused surfaces are that noisy. Lower, and a table's noise is cut from it.
+  /// A vertex lies on a support within this distance of its plane, then of its own surface
+  /// (SupportPlane::surface): about two voxels of KinFu's 3 m / 512 volume, as fused surfaces
+  /// are that noisy. Lower, and a table's noise is cut from it.
   float distance_m = 0.01f;
   /// ... and with its normal within this angle of the plane's: the rounded fold at an object's
   /// foot then goes with the object, not with the support.
@@ -44,7 +45,7 @@ struct SupportConfig {
   /// and sides (6, the former value, left the lowest board of a three-board shelf unfound).
   int max_planes = 10;
   /// Small candidates standing on a support are offered twice: as segmented, and without their
-  /// foot (their vertices within `foot_fold_m` of a support plane whose normals lie within
+  /// foot (their vertices within `foot_fold_m` of a support's surface whose normals lie within
   /// `foot_fold_deg` of its), when that removes at least a tenth of them. Fusion rounds the fold
   /// where a small object meets its table into a band of 2-12 mm whose normals lean about 34
   /// degrees from up, which the support (25 degrees) leaves to the object: a dice of 68 fused
@@ -86,9 +87,9 @@ struct SupportPlane {
   /// fitted to the support's vertices. A fused table is not flat: the sensor's fixed depth error
   /// bends it by several millimetres (real fusions lie 3-7 mm off their fitted plane), which is
   /// most of the supports' 1 cm band, and a far floor or wall by centimetres. Beyond the vertices
-  /// it was fitted to, it goes on bending as the quadratic does (the sensor's error is smooth);
-  /// only vertices connected to the support and facing as it does can join it there. Not
-  /// `curved`: the plane itself.
+  /// it was fitted to, it goes on bending as the quadratic does (the sensor's error is smooth).
+  /// Not `curved` (the plane itself) when the support spreads less than 5 cm (standard
+  /// deviation) across its narrowest direction, which fixes no bend.
   Eigen::Vector3f axis_u = Eigen::Vector3f::UnitX();
   Eigen::Vector3f axis_v = Eigen::Vector3f::UnitY();
   float centre_u = 0.0f, centre_v = 0.0f;
@@ -105,8 +106,9 @@ struct Supports {
   std::vector<SupportPlane> planes;
   /// Per mesh vertex: 1 when it belongs to a support region or to a fold.
   std::vector<std::uint8_t> on_support;
-  /// Vertices within the distance of two or more supports' planes whatever their normals: the
-  /// rounded fold where a shelf board meets its wall. Supports too; not in any plane's count.
+  /// Vertices within the distance of two or more supports (each's plane or surface) whatever
+  /// their normals: the rounded fold where a shelf board meets its wall. Supports too; not in
+  /// any plane's count.
   std::size_t fold_vertices = 0;
 };
 
@@ -116,7 +118,8 @@ struct Supports {
 /// PCL's), largest first; on each, the vertices
 /// within `distance_m` whose normals agree, grouped into connected regions over the mesh's edges;
 /// the regions of at least `min_vertices` (already scaled to the mesh's density) are supports.
-/// Then the vertices near two supports' planes (folds) join them.
+/// Their own surface is then fitted (SupportPlane::surface) and the same is done again against
+/// it. Then the vertices near two supports (folds) join them.
 /// `mesh` must have normals (std::invalid_argument otherwise).
 Supports findSupports(const TriangleMesh& mesh, const MeshGraph& graph, const SupportConfig& config,
                       std::size_t min_vertices);
