@@ -77,15 +77,25 @@ void fitSurface(const TriangleMesh& mesh, const std::vector<std::uint8_t>& membe
   plane.axis_v = n.cross(plane.axis_u);
   double su = 0.0, sv = 0.0;
   std::size_t count = 0;
+  float min_u = std::numeric_limits<float>::infinity(), min_v = min_u;
+  float max_u = -min_u, max_v = -min_u;
   for (std::size_t v = 0; v < member.size(); ++v) {
     if (!member[v]) continue;
-    su += plane.axis_u.dot(mesh.positions[v]);
-    sv += plane.axis_v.dot(mesh.positions[v]);
+    const float u = plane.axis_u.dot(mesh.positions[v]);
+    const float w = plane.axis_v.dot(mesh.positions[v]);
+    su += u;
+    sv += w;
+    min_u = std::min(min_u, u);
+    max_u = std::max(max_u, u);
+    min_v = std::min(min_v, w);
+    max_v = std::max(max_v, w);
     ++count;
   }
   if (count < 6) return;
   plane.centre_u = static_cast<float>(su / static_cast<double>(count));
   plane.centre_v = static_cast<float>(sv / static_cast<double>(count));
+  plane.reach_u = {min_u - plane.centre_u, max_u - plane.centre_u};
+  plane.reach_v = {min_v - plane.centre_v, max_v - plane.centre_v};
   // A support narrow in some direction (a long board seen edge-on, a strip of table between
   // things) fixes no bend across it: its square terms would be noise, and they grow fast beside
   // it. It stays flat.
@@ -123,10 +133,16 @@ void fitSurface(const TriangleMesh& mesh, const std::vector<std::uint8_t>& membe
 float SupportPlane::height(const Eigen::Vector3f& p) const {
   const float over_plane = planeHeight(p);
   if (!curved) return over_plane;
+  // Beyond the box of the vertices it was fitted to, the surface goes on along its tangent at the
+  // box's edge: it follows the bend's slope there, but does not climb as the square would.
   const float u = axis_u.dot(p) - centre_u;
   const float w = axis_v.dot(p) - centre_v;
-  const float bend = surface[0] + surface[1] * u + surface[2] * w + surface[3] * u * u +
-                     surface[4] * u * w + surface[5] * w * w;
+  const float uc = std::clamp(u, reach_u.x(), reach_u.y());
+  const float wc = std::clamp(w, reach_v.x(), reach_v.y());
+  const float bend = surface[0] + surface[1] * uc + surface[2] * wc + surface[3] * uc * uc +
+                     surface[4] * uc * wc + surface[5] * wc * wc +
+                     (surface[1] + 2.0f * surface[3] * uc + surface[4] * wc) * (u - uc) +
+                     (surface[2] + surface[4] * uc + 2.0f * surface[5] * wc) * (w - wc);
   return over_plane - bend;
 }
 

@@ -241,6 +241,18 @@ TEST(Supports, FollowTheTableWhereFusionBendsIt) {
   }
   EXPECT_EQ(table_on, table);
   EXPECT_GT(off_the_plane, table / 50) << "the plane alone would have left the corners out";
+  // Beyond the table, the surface goes on along its tangent at the table's edge: the bowl does
+  // not climb on as its square would (28 cm deep 2 m out).
+  const auto surface = [&](float x, float y) {
+    const Eigen::Vector3f p(x, y, 0.25f);
+    return plane.planeHeight(p) - plane.height(p);
+  };
+  for (const Eigen::Vector2f& direction : {Eigen::Vector2f(1, 0), Eigen::Vector2f(0, -1)}) {
+    const Eigen::Vector2f edge = 0.4f * direction, inside = 0.39f * direction;
+    const Eigen::Vector2f far = 2.0f * direction;
+    const float slope = (surface(edge.x(), edge.y()) - surface(inside.x(), inside.y())) / 0.01f;
+    EXPECT_NEAR(surface(far.x(), far.y()), surface(edge.x(), edge.y()) + 1.6f * slope, 2e-3f);
+  }
 }
 
 TEST(Supports, NoSupportOnCurvedOrSmallSurfaces) {

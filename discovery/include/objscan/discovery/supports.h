@@ -86,13 +86,16 @@ struct SupportPlane {
   /// `axis_u` and `axis_v` less `centre_u` and `centre_v` (coefficients of 1, u, v, u^2, uv, v^2),
   /// fitted to the support's vertices. A fused table is not flat: the sensor's fixed depth error
   /// bends it by several millimetres (real fusions lie 3-7 mm off their fitted plane), which is
-  /// most of the supports' 1 cm band, and a far floor or wall by centimetres. Beyond the vertices
-  /// it was fitted to, it goes on bending as the quadratic does (the sensor's error is smooth).
-  /// Not `curved` (the plane itself) when the support spreads less than 5 cm (standard
-  /// deviation) across its narrowest direction, which fixes no bend.
+  /// most of the supports' 1 cm band, and a far floor or wall by centimetres. Beyond the box
+  /// (along u and v) of the vertices it was fitted to, it goes on along its tangent at the box's
+  /// edge (a quadratic would climb ever faster). Not `curved` (the plane itself) when the
+  /// support spreads less than 5 cm (standard deviation) across its narrowest direction, which
+  /// fixes no bend.
   Eigen::Vector3f axis_u = Eigen::Vector3f::UnitX();
   Eigen::Vector3f axis_v = Eigen::Vector3f::UnitY();
   float centre_u = 0.0f, centre_v = 0.0f;
+  /// The least and greatest u and v, less the centre, of the vertices it was fitted to.
+  Eigen::Vector2f reach_u = Eigen::Vector2f::Zero(), reach_v = Eigen::Vector2f::Zero();
   Eigen::Matrix<float, 6, 1> surface = Eigen::Matrix<float, 6, 1>::Zero();
   bool curved = false;
 
