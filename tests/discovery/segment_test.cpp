@@ -60,6 +60,14 @@ TEST(Segment, EachHardFilterRejectsWhatItShould) {
     return rejection(describeSegment(mesh, all(mesh)), filter).value_or("");
   };
   EXPECT_EQ(why({0.10f, 0.08f, 0.08f}), "");  // a mug
+  // A fork, 19 x 2.5 x 2 cm: lambda1 / lambda0 = (2.5 / 19)^2 = 0.017, which the paper's 0.05
+  // rejected as a stick.
+  EXPECT_EQ(why({0.19f, 0.025f, 0.02f}), "");
+  SegmentFilter paper;
+  paper.min_lambda1_over_lambda0 = 0.05f;
+  const TriangleMesh fork = box({0.19f, 0.025f, 0.02f});
+  EXPECT_NE(rejection(describeSegment(fork, all(fork)), paper).value_or("").find("too thin"),
+            std::string::npos);
   EXPECT_NE(why({1.20f, 0.30f, 0.30f}).find("larger than 1.00 m"), std::string::npos);
   EXPECT_NE(why({0.30f, 0.30f, 0.005f}).find("thinner than 10 mm"), std::string::npos);
   // A 90 cm stick 5 cm across: lambda1 / lambda0 = (5 / 90)^2 = 0.003.
