@@ -289,11 +289,8 @@ void appendTrimmedFeet(const TriangleMesh& mesh, const Supports& supports,
     const Eigen::Vector3f& p = mesh.positions[static_cast<std::size_t>(v)];
     const Eigen::Vector3f& n = mesh.normals[static_cast<std::size_t>(v)];
     return std::any_of(supports.planes.begin(), supports.planes.end(), [&](const SupportPlane& s) {
-      // Against the support's own surface (SupportPlane::height), not its plane; normals as
-      // onPlane compares them.
-      const float length = n.norm();
-      return length > 0.0f && std::abs(s.height(p)) <= config.supports.foot_fold_m &&
-             std::abs(s.normal.dot(n)) >= min_cos * length;
+      // Against the support's own surface (SupportPlane::height), not its plane.
+      return onSurface(s.height(p), s.normal, n, config.supports.foot_fold_m, min_cos);
     });
   };
   const std::size_t count = segments.size();

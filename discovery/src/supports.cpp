@@ -96,20 +96,6 @@ void fitSurface(const TriangleMesh& mesh, const std::vector<std::uint8_t>& membe
   plane.centre_v = static_cast<float>(sv / static_cast<double>(count));
   plane.reach_u = {min_u - plane.centre_u, max_u - plane.centre_u};
   plane.reach_v = {min_v - plane.centre_v, max_v - plane.centre_v};
-  // A support narrow in some direction (a long board seen edge-on, a strip of table between
-  // things) fixes no bend across it: its square terms would be noise, and they grow fast beside
-  // it. It stays flat.
-  Eigen::Matrix2d spread = Eigen::Matrix2d::Zero();
-  for (std::size_t v = 0; v < member.size(); ++v) {
-    if (!member[v]) continue;
-    const Eigen::Vector2d d(plane.axis_u.dot(mesh.positions[v]) - plane.centre_u,
-                            plane.axis_v.dot(mesh.positions[v]) - plane.centre_v);
-    spread.noalias() += d * d.transpose();
-  }
-  spread /= static_cast<double>(count);
-  const double narrowest = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(spread).eigenvalues()(0);
-  if (!(narrowest >= kMinSurfaceSpreadM * kMinSurfaceSpreadM)) return;
-
   Eigen::Matrix<double, 6, 6> ata = Eigen::Matrix<double, 6, 6>::Zero();
   Eigen::Matrix<double, 6, 1> atb = Eigen::Matrix<double, 6, 1>::Zero();
   for (std::size_t v = 0; v < member.size(); ++v) {
@@ -122,6 +108,12 @@ void fitSurface(const TriangleMesh& mesh, const std::vector<std::uint8_t>& membe
     ata.noalias() += row * row.transpose();
     atb.noalias() += row * static_cast<double>(plane.planeHeight(p));
   }
+  // A support narrow in some direction (a long board seen edge-on, a strip of table between
+  // things) fixes no bend across it: its square terms would be noise, and they grow fast beside
+  // it. It stays flat. The spread of u and v about the centre is in the normal equations already.
+  const Eigen::Matrix2d spread = ata.block<2, 2>(1, 1) / static_cast<double>(count);
+  const double narrowest = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(spread).eigenvalues()(0);
+  if (!(narrowest >= kMinSurfaceSpreadM * kMinSurfaceSpreadM)) return;
   const Eigen::Matrix<double, 6, 1> c = ata.ldlt().solve(atb);
   if (!c.allFinite()) return;
   plane.surface = c.cast<float>();
@@ -258,7 +250,7 @@ Supports findSupports(const TriangleMesh& mesh, const MeshGraph& graph, const Su
     fitSurface(mesh, member, plane);
     if (plane.curved) {
       for (std::size_t v = 0; v < n; ++v) {
-        if (out.on_support[v] || (taken[v] && !near_this[v])) continue;  // an earlier plane's
+        if (taken[v] && !near_this[v]) continue;  // an earlier plane's
         const bool near_surface = std::abs(plane.height(mesh.positions[v])) <= config.distance_m;
         if (!near_surface) {
           on_plane[v] = 0;
