@@ -1,9 +1,11 @@
 #include "objscan/discovery/labels.h"
 
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 #include <unordered_map>
 
+#include <Eigen/Geometry>
 #include <tbb/parallel_for.h>
 
 #include "objscan/core/mesh_distance.h"
@@ -35,6 +37,90 @@ std::vector<std::int32_t> transferLabels(const TriangleMesh& mesh, const Triangl
     labels[v] = truth.labels[static_cast<std::size_t>(best)];
   });
   return labels;
+}
+
+TruthAlignment alignToTruth(const TriangleMesh& mesh, const TriangleMesh& truth, float reach_m) {
+  if (truth.triangles.empty()) {
+    throw std::invalid_argument("the ground-truth mesh needs triangles to align a mesh to it");
+  }
+  constexpr std::size_t kMaxSamples = 5000;
+  constexpr std::size_t kMinPairs = 100;
+  constexpr int kMaxIterations = 30;
+  constexpr double kStillM = 1e-5;                           // 0.01 mm
+  constexpr double kStillRad = 1e-3 * 3.14159265358979 / 180.0;  // 0.001 degrees
+  const std::size_t stride = std::max<std::size_t>(1, mesh.positions.size() / kMaxSamples);
+  std::vector<std::size_t> samples;
+  for (std::size_t v = 0; v < mesh.positions.size(); v += stride) samples.push_back(v);
+
+  const MeshDistance distance(truth, reach_m);
+  struct Pair {
+    Eigen::Vector3d p, q, n;  // the moved vertex, its closest truth point, that triangle's normal
+    bool found = false;
+  };
+  std::vector<Pair> pairs(samples.size());
+  // Pairs each moved sample with its closest truth point; returns how many and their RMS.
+  const auto pairUp = [&](const Eigen::Isometry3d& T) {
+    tbb::parallel_for(std::size_t{0}, samples.size(), [&](std::size_t i) {
+      Pair& pr = pairs[i];
+      pr.p = T * mesh.positions[samples[i]].cast<double>();
+      const MeshDistance::Closest c = distance.closest(pr.p.cast<float>());
+      pr.found = false;
+      if (c.triangle < 0 || !(c.distance_m <= reach_m)) return;
+      const Eigen::Vector3i& t = truth.triangles[static_cast<std::size_t>(c.triangle)];
+      const Eigen::Vector3d n = (truth.positions[t[1]] - truth.positions[t[0]])
+                                    .cross(truth.positions[t[2]] - truth.positions[t[0]])
+                                    .cast<double>();
+      if (n.norm() <= 0.0) return;
+      pr.q = c.point.cast<double>();
+      pr.n = n.normalized();
+      pr.found = true;
+    });
+    std::size_t n = 0;
+    double sum_sq = 0.0;
+    for (const Pair& pr : pairs) {
+      if (!pr.found) continue;
+      ++n;
+      sum_sq += (pr.q - pr.p).squaredNorm();
+    }
+    return std::make_pair(n, n ? static_cast<float>(std::sqrt(sum_sq / static_cast<double>(n)))
+                               : 0.0f);
+  };
+  // Point-to-plane steps (Chen and Medioni; linearised as Low, 2004): the small turn w and shift
+  // t that minimise the sum of ((p + w x p + t - q) . n)^2. On a scene of large planes they
+  // converge in a few steps where point-to-point ICP slides along the planes for dozens.
+  TruthAlignment out;
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  for (out.iterations = 0; out.iterations < kMaxIterations; ++out.iterations) {
+    const auto [n, rms] = pairUp(T);
+    if (out.iterations == 0) out.rms_before_m = rms;
+    if (n < kMinPairs) {
+      throw std::invalid_argument(
+          "too few of the mesh's vertices lie near the ground truth to align them (" +
+          std::to_string(n) + "); is the mesh in the truth's frame?");
+    }
+    Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
+    Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
+    for (const Pair& pr : pairs) {
+      if (!pr.found) continue;
+      Eigen::Matrix<double, 6, 1> J;
+      J << pr.p.cross(pr.n), pr.n;
+      A += J * J.transpose();
+      b -= J * (pr.p - pr.q).dot(pr.n);
+    }
+    const Eigen::Matrix<double, 6, 1> x = A.ldlt().solve(b);
+    if (!x.allFinite()) break;
+    const Eigen::Vector3d w = x.head<3>();
+    Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
+    if (w.norm() > 0.0) step.linear() = Eigen::AngleAxisd(w.norm(), w.normalized()).matrix();
+    step.translation() = x.tail<3>();
+    T = step * T;
+    if (x.tail<3>().norm() < kStillM && w.norm() < kStillRad) break;
+  }
+  const auto [n, rms] = pairUp(T);
+  out.T_truth_mesh = T.cast<float>();
+  out.pairs = n;
+  out.rms_after_m = rms;
+  return out;
 }
 
 LabelTransfer transferVertexLabels(const TriangleMesh& mesh, const TriangleMesh& truth,

@@ -24,13 +24,38 @@
 
 namespace objscan::discovery {
 
-GroundTruthObjects truthFromMesh(const std::filesystem::path& truth_path,
-                                 const TriangleMesh& mesh) {
+namespace {
+
+/// `mesh` laid onto `truth` by alignToTruth (its positions only), with a line saying how far it
+/// moved.
+TriangleMesh alignedTo(const TriangleMesh& truth, const std::filesystem::path& truth_path,
+                       const TriangleMesh& mesh) {
+  const TruthAlignment a = alignToTruth(mesh, truth);
+  TriangleMesh moved;
+  moved.positions.reserve(mesh.positions.size());
+  for (const Eigen::Vector3f& p : mesh.positions) moved.positions.push_back(a.T_truth_mesh * p);
+  char line[200];
+  std::snprintf(line, sizeof line,
+                ": the mesh laid onto it: moved %.1f mm, turned %.2f degrees; RMS distance "
+                "%.1f -> %.1f mm (%zu vertices, %d steps)",
+                1000.0 * a.T_truth_mesh.translation().norm(),
+                Eigen::AngleAxisf(a.T_truth_mesh.rotation()).angle() * 180.0 / 3.14159265358979,
+                1000.0 * a.rms_before_m, 1000.0 * a.rms_after_m, a.pairs, a.iterations);
+  log::info(truth_path.string() + line);
+  return moved;
+}
+
+}  // namespace
+
+GroundTruthObjects truthFromMesh(const std::filesystem::path& truth_path, const TriangleMesh& mesh,
+                                 bool align) {
   const TriangleMesh truth = readPly(truth_path);
   if (!truth.hasLabels()) throw InputError(truth_path, "no per-vertex object_id or label");
   try {
+    const TriangleMesh aligned = align ? alignedTo(truth, truth_path, mesh) : TriangleMesh{};
+    const TriangleMesh& labelled = align ? aligned : mesh;
     if (truth.hasIgnore()) {
-      LabelTransfer transfer = transferVertexLabels(mesh, truth, kLabelledMeshDistanceM);
+      LabelTransfer transfer = transferVertexLabels(labelled, truth, kLabelledMeshDistanceM);
       if (2 * transfer.unmatched > mesh.positions.size()) {
         // Most of the mesh is not where the labels are: another world frame, or another scene.
         log::warning(truth_path.string() + ": " + std::to_string(transfer.unmatched) + " of " +
@@ -40,7 +65,7 @@ GroundTruthObjects truthFromMesh(const std::filesystem::path& truth_path,
       }
       return GroundTruthObjects(std::move(transfer.labels), std::move(transfer.ignore));
     }
-    return GroundTruthObjects(transferLabels(mesh, truth));
+    return GroundTruthObjects(transferLabels(labelled, truth));
   } catch (const std::invalid_argument& e) {
     throw InputError(truth_path, e.what());
   }
@@ -97,14 +122,14 @@ std::optional<Eigen::Vector3f> viewUpBeside(const fs::path& mesh_path) {
   }
 }
 
-GroundTruthObjects groundTruth(const fs::path& argument, const TriangleMesh& mesh) {
+GroundTruthObjects groundTruth(const fs::path& argument, const TriangleMesh& mesh, bool align) {
   if (fs::is_directory(argument)) {
     const fs::path truth_path = argument / "scene_gt.ply";
     if (!fs::is_regular_file(truth_path)) {
       throw InputError(argument,
                        "a labelled scene folder needs scene_gt.ply (objscan synth writes it)");
     }
-    return truthFromMesh(truth_path, mesh);
+    return truthFromMesh(truth_path, mesh, align);
   }
   if (!mesh.hasLabels()) {
     throw InputError(argument,
@@ -432,7 +457,7 @@ SceneInput loadScene(const fs::path& argument, const SceneReading& reading) {
   scene.view_up = reading.view_up ? reading.view_up : viewUpBeside(mesh_path);
   if (reading.labelled) {
     try {
-      scene.truth.emplace(groundTruth(argument, scene.mesh));
+      scene.truth.emplace(groundTruth(argument, scene.mesh, reading.align_truth));
     } catch (const std::invalid_argument& e) {
       throw InputError(argument, e.what());
     }

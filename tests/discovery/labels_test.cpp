@@ -52,6 +52,92 @@ TEST(TransferLabels, NeedsLabelledTriangles) {
   EXPECT_THROW(transferLabels(fused, truth), std::invalid_argument);
 }
 
+/// A floor 80 cm square at 1 cm spacing with three boxes on it, as a height field: a 12 x 8 x 6 cm
+/// box (id 1), a 3 cm cube (id 2, a small object) and a 10 x 10 x 10 cm box (id 3). The floor
+/// and the boxes' sides are 0.
+TriangleMesh floorWithBoxes() {
+  struct Box {
+    float x0, x1, y0, y1, h;
+    std::int32_t id;
+  };
+  const Box boxes[] = {{-0.2f, -0.08f, 0.0f, 0.08f, 0.06f, 1},
+                       {0.1f, 0.13f, -0.1f, -0.07f, 0.03f, 2},
+                       {0.05f, 0.15f, 0.1f, 0.2f, 0.1f, 3}};
+  const auto on = [&](float x, float y) -> const Box* {
+    for (const Box& b : boxes) {
+      if (x >= b.x0 - 1e-4f && x <= b.x1 + 1e-4f && y >= b.y0 - 1e-4f && y <= b.y1 + 1e-4f) {
+        return &b;
+      }
+    }
+    return nullptr;
+  };
+  TriangleMesh m = testing::makeHeightField(81, 0.4f, [&](float x, float y) {
+    const Box* b = on(x, y);
+    return b ? b->h : 0.0f;
+  });
+  for (const Eigen::Vector3f& p : m.positions) {
+    const Box* b = on(p.x(), p.y());
+    m.labels.push_back(b ? b->id : 0);
+  }
+  return m;
+}
+
+/// The share of vertices whose labels differ.
+double differing(const std::vector<std::int32_t>& a, const std::vector<std::int32_t>& b) {
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) n += a[i] != b[i];
+  return static_cast<double>(n) / static_cast<double>(a.size());
+}
+
+/// The share of the vertices that `truth` labels `id` that `labels` label `id` too.
+double kept(const std::vector<std::int32_t>& labels, const std::vector<std::int32_t>& truth,
+            std::int32_t id) {
+  std::size_t both = 0, of_truth = 0;
+  for (std::size_t i = 0; i < truth.size(); ++i) {
+    of_truth += truth[i] == id;
+    both += truth[i] == id && labels[i] == id;
+  }
+  return of_truth ? static_cast<double>(both) / static_cast<double>(of_truth) : 0.0;
+}
+
+TEST(AlignToTruth, LaysADisplacedFusionBackOntoItsTruthAndItsLabelsFollow) {
+  const TriangleMesh truth = floorWithBoxes();
+  // The "fusion": the same surface displaced as a drifting fusion with a depth bias is, by 13 mm
+  // (mostly up) and 0.6 degrees.
+  Eigen::Isometry3f T_mesh_truth = Eigen::Isometry3f::Identity();
+  T_mesh_truth.linear() =
+      Eigen::AngleAxisf(0.6f * 3.14159265f / 180.0f, Eigen::Vector3f(0.3f, 1.0f, 0.2f).normalized())
+          .matrix();
+  T_mesh_truth.translation() = Eigen::Vector3f(0.004f, -0.003f, 0.012f);
+  TriangleMesh fused = truth;
+  for (Eigen::Vector3f& p : fused.positions) p = T_mesh_truth * p;
+  fused.labels.clear();
+
+  const TruthAlignment a = alignToTruth(fused, truth);
+  const Eigen::Isometry3f residual = a.T_truth_mesh * T_mesh_truth;  // identity when exact
+  EXPECT_LT(residual.translation().norm(), 0.0005f) << "0.5 mm";
+  EXPECT_LT(Eigen::AngleAxisf(residual.rotation()).angle(), 0.05f * 3.14159265f / 180.0f);
+  EXPECT_GT(a.rms_before_m, 0.003f);
+  EXPECT_LT(a.rms_after_m, 0.0005f);
+  EXPECT_GT(a.pairs, 5000u * 9 / 10) << "nearly every picked vertex is within reach";
+
+  // Unmoved, most of the small cube's top lies over 1 cm from any true surface and counts as
+  // background; moved back, every label is the truth's.
+  EXPECT_LT(kept(transferLabels(fused, truth), truth.labels, 2), 0.5);
+  TriangleMesh moved = fused;
+  for (Eigen::Vector3f& p : moved.positions) p = a.T_truth_mesh * p;
+  const std::vector<std::int32_t> labels = transferLabels(moved, truth);
+  for (std::int32_t id : {1, 2, 3}) EXPECT_EQ(kept(labels, truth.labels, id), 1.0) << id;
+  EXPECT_LT(differing(labels, truth.labels), 0.001);
+}
+
+TEST(AlignToTruth, SaysSoWhenTheMeshIsNowhereNearTheTruth) {
+  const TriangleMesh truth = floorWithBoxes();
+  TriangleMesh far = truth;
+  for (Eigen::Vector3f& p : far.positions) p.z() += 0.5f;
+  EXPECT_THROW(alignToTruth(far, truth), std::invalid_argument);
+}
+
 TEST(TransferVertexLabels, EachVertexTakesTheNearestLabelledVertexWithinOneAndAHalfCentimetres) {
   // A hand-labelled fusion: three vertices, the last one ignored (a plant, say).
   TriangleMesh labelled;

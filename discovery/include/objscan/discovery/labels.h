@@ -3,6 +3,8 @@
 #include <cstdint>
 #include <vector>
 
+#include <Eigen/Geometry>
+
 #include "objscan/core/triangle_mesh.h"
 
 /// Ground-truth labels for discovery's segments (issue 6, "Labels and evaluation"): object ids
@@ -16,6 +18,26 @@ namespace objscan::discovery {
 /// triangles. Runs in parallel.
 std::vector<std::int32_t> transferLabels(const TriangleMesh& mesh, const TriangleMesh& truth,
                                          float max_distance_m = 0.01f);
+
+/// How a fused mesh was laid onto its ground truth (alignToTruth).
+struct TruthAlignment {
+  Eigen::Isometry3f T_truth_mesh = Eigen::Isometry3f::Identity();  ///< mesh frame -> truth's
+  float rms_before_m = 0.0f;  ///< RMS distance of the paired vertices to the truth, unmoved
+  float rms_after_m = 0.0f;   ///< the same, moved
+  std::size_t pairs = 0;      ///< vertices within reach of the truth at the end
+  int iterations = 0;
+};
+
+/// The rigid motion that lays `mesh` onto the surface of `truth` (both in metres): point-to-plane
+/// ICP from the identity, each of up to 5,000 evenly picked vertices paired
+/// with the closest point of `truth` within `reach_m`, each step a linear least-squares solve, until
+/// a step moves less than 0.01 mm and 0.001 degrees (at most 30 steps). A fusion drifts and its
+/// sensor's depth is biased, so its map is displaced from the truth by millimetres to
+/// centimetres, as much as a small object is wide; evaluations of reconstructions align first
+/// for the same reason (TUM's ATE, Horn). Throws std::invalid_argument when `truth` has no
+/// triangles or fewer than 100 vertices lie within reach.
+TruthAlignment alignToTruth(const TriangleMesh& mesh, const TriangleMesh& truth,
+                            float reach_m = 0.02f);
 
 /// A hand-labelled fusion's labels moved onto another fusion of the same frames: each vertex
 /// takes the label and ignore flag of the nearest labelled vertex within this distance (1.5 cm,

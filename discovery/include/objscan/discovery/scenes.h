@@ -48,6 +48,9 @@ struct SceneReading {
   /// Also the ground truth: scene_gt.ply in a scene folder, the mesh's own object_id, or a PCD's
   /// label field (each object part an object; SceneInput::whole_objects merges the parts).
   bool labelled = false;
+  /// With `labelled`: lay each fused mesh onto its labelled mesh (scene_gt.ply, or a labelled
+  /// fusion) before the labels move onto it (truthFromMesh's `align`).
+  bool align_truth = false;
   /// The file's content hash for the catalog (a run without one need not read the file twice).
   bool hash = true;
   /// The camera of an unorganized PCD (its points are put back on this pixel grid); nothing: the
@@ -92,9 +95,11 @@ SceneInput sceneFromMesh(std::string name, TriangleMesh mesh, std::string conten
 /// objscan synth's scene_gt.ply (per-vertex object_id; each vertex takes the id of the nearest
 /// surface within 1 cm), or a hand-labelled fusion with per-vertex label and ignore flags (each
 /// vertex takes both from the nearest labelled vertex within kLabelledMeshDistanceM, and is
-/// ignored where there is none). Throws InputError naming `truth_path` when it cannot be read or
-/// has no ids.
-GroundTruthObjects truthFromMesh(const std::filesystem::path& truth_path, const TriangleMesh& mesh);
+/// ignored where there is none). With `align`, `mesh` is first laid onto the truth's surface by
+/// alignToTruth, and a line says how far it moved. Throws InputError naming `truth_path` when it
+/// cannot be read, has no ids, or (with `align`) has too little near the mesh to align it.
+GroundTruthObjects truthFromMesh(const std::filesystem::path& truth_path, const TriangleMesh& mesh,
+                                 bool align = false);
 
 /// The default catalog: $OBJSCAN_CATALOG, else $XDG_DATA_HOME/objscan/catalog.sqlite, else
 /// ~/.local/share/objscan/catalog.sqlite (its folder is created).
