@@ -1,6 +1,8 @@
 #include "objscan/core/triangle_mesh.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <stdexcept>
 #include <string>
 
@@ -110,26 +112,63 @@ double TriangleMesh::surfaceArea() const {
 }
 
 TriangleMesh TriangleMesh::subset(const std::vector<std::int32_t>& vertices) const {
-  std::vector<std::int32_t> renumbered(positions.size(), -1);
+  return MeshSubsets(*this).subset(vertices);
+}
+
+MeshSubsets::MeshSubsets(const TriangleMesh& mesh) : mesh_(mesh) {
+  const std::size_t n = mesh.positions.size();
+  const auto valid = [n](const Eigen::Vector3i& t) {
+    return t.minCoeff() >= 0 && static_cast<std::size_t>(t.maxCoeff()) < n;
+  };
+  first_.assign(n + 1, 0);
+  for (const Eigen::Vector3i& t : mesh.triangles) {
+    if (valid(t)) ++first_[static_cast<std::size_t>(t.minCoeff()) + 1];
+  }
+  for (std::size_t v = 0; v < n; ++v) first_[v + 1] += first_[v];
+  by_vertex_.resize(first_[n]);
+  std::vector<std::uint32_t> next(first_.begin(), first_.end() - 1);
+  for (std::size_t i = 0; i < mesh.triangles.size(); ++i) {
+    const Eigen::Vector3i& t = mesh.triangles[i];
+    if (valid(t)) by_vertex_[next[static_cast<std::size_t>(t.minCoeff())]++] = static_cast<std::uint32_t>(i);
+  }
+}
+
+TriangleMesh MeshSubsets::subset(const std::vector<std::int32_t>& vertices) const {
+  const TriangleMesh& m = mesh_;
   TriangleMesh out;
   std::int32_t previous = -1;
   for (std::int32_t v : vertices) {
-    if (v <= previous || static_cast<std::size_t>(v) >= positions.size()) {
+    if (v <= previous || static_cast<std::size_t>(v) >= m.positions.size()) {
       throw std::invalid_argument("subset: vertex " + std::to_string(v) +
                                   " is outside the mesh or out of increasing order");
     }
     previous = v;
-    renumbered[v] = static_cast<std::int32_t>(out.positions.size());
-    out.positions.push_back(positions[v]);
-    if (hasNormals()) out.normals.push_back(normals[v]);
-    if (hasColors()) out.colors.push_back(colors[v]);
-    if (hasLabels()) out.labels.push_back(labels[v]);
-    if (hasWeights()) out.weights.push_back(weights[v]);
-    if (hasIgnore()) out.ignore.push_back(ignore[v]);
+    out.positions.push_back(m.positions[v]);
+    if (m.hasNormals()) out.normals.push_back(m.normals[v]);
+    if (m.hasColors()) out.colors.push_back(m.colors[v]);
+    if (m.hasLabels()) out.labels.push_back(m.labels[v]);
+    if (m.hasWeights()) out.weights.push_back(m.weights[v]);
+    if (m.hasIgnore()) out.ignore.push_back(m.ignore[v]);
   }
-  for (const Eigen::Vector3i& t : triangles) {
-    const Eigen::Vector3i r(renumbered[t[0]], renumbered[t[1]], renumbered[t[2]]);
-    if (r.minCoeff() >= 0) out.triangles.push_back(r);
+  // A vertex's new index is its place in `vertices` (increasing): -1 when it is not there.
+  const auto renumbered = [&](int v) {
+    const auto it = std::lower_bound(vertices.begin(), vertices.end(), v);
+    return it != vertices.end() && *it == v ? static_cast<int>(it - vertices.begin()) : -1;
+  };
+  std::vector<std::uint32_t> inner;
+  for (std::int32_t v : vertices) {
+    for (std::uint32_t k = first_[v]; k < first_[v + 1]; ++k) {
+      const Eigen::Vector3i& t = m.triangles[by_vertex_[k]];
+      if (renumbered(t[0]) >= 0 && renumbered(t[1]) >= 0 && renumbered(t[2]) >= 0) {
+        inner.push_back(by_vertex_[k]);
+      }
+    }
+  }
+  std::sort(inner.begin(), inner.end());
+  out.triangles.reserve(inner.size());
+  for (std::uint32_t i : inner) {
+    const Eigen::Vector3i& t = m.triangles[i];
+    out.triangles.emplace_back(renumbered(t[0]), renumbered(t[1]), renumbered(t[2]));
   }
   return out;
 }

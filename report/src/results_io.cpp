@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <string_view>
 #include <system_error>
 #include <unordered_map>
@@ -161,13 +162,15 @@ void writeObjects(const fs::path& partial, const Hypotheses& hypotheses,
       }
     }
   }
+  std::vector<std::optional<MeshSubsets>> parts(run.scenes.size());
   for (std::size_t i = 0; i < run.ranked.size(); ++i) {
     const std::size_t scene = run.ranked[i].scene;
-    const TriangleMesh& mesh = run.scenes[scene].mesh;
+    if (!parts[scene]) parts[scene].emplace(run.scenes[scene].mesh);
     const HypothesisRecord& h = hypotheses.hypotheses.at(i);
     const fs::path file = partial / fs::path(h.file).filename();
-    writeFileAtomically(file, encodeMesh(mesh.subset(run.ranked[i].hypothesis.segment.vertices),
-                                         format, ups[scene]));
+    writeFileAtomically(file,
+                        encodeMesh(parts[scene]->subset(run.ranked[i].hypothesis.segment.vertices),
+                                   format, ups[scene]));
     if (h.box) writeJson(partial / rankFileName(h.rank, ".json"), objectPoseJson(h));
   }
 }

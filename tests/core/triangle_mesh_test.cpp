@@ -120,5 +120,40 @@ TEST(TriangleMesh, SubsetKeepsTheVerticesAttributesAndInnerTriangles) {
   EXPECT_FALSE(bare.hasIgnore());
 }
 
+TEST(MeshSubsets, ManyPartsOfOneMeshAreWhatSubsetGives) {
+  // A random mesh (awkward floats, triangles in no order), every third vertex and a run of them.
+  const TriangleMesh m = testing::makeRandomMesh(7, 300, 900);
+  const MeshSubsets parts(m);
+  std::vector<std::int32_t> thirds, run, all;
+  for (std::int32_t v = 0; v < 300; ++v) {
+    if (v % 3 == 0) thirds.push_back(v);
+    if (v >= 40 && v < 200) run.push_back(v);
+    all.push_back(v);
+  }
+  for (const auto& part : {thirds, run, all, std::vector<std::int32_t>{}}) {
+    // Against the rule itself: the triangles whose three vertices are in the part, in the mesh's
+    // order, each vertex renumbered to its place in the part.
+    std::vector<std::int32_t> place(m.positions.size(), -1);
+    for (std::size_t i = 0; i < part.size(); ++i) place[part[i]] = static_cast<std::int32_t>(i);
+    std::vector<Eigen::Vector3i> inner;
+    for (const Eigen::Vector3i& t : m.triangles) {
+      const Eigen::Vector3i r(place[t[0]], place[t[1]], place[t[2]]);
+      if (r.minCoeff() >= 0) inner.push_back(r);
+    }
+    const TriangleMesh s = parts.subset(part);
+    EXPECT_EQ(s.triangles, inner);
+    ASSERT_EQ(s.positions.size(), part.size());
+    for (std::size_t i = 0; i < part.size(); ++i) {
+      EXPECT_EQ(s.positions[i], m.positions[part[i]]);
+      EXPECT_EQ(s.colors[i], m.colors[part[i]]);
+      EXPECT_EQ(s.labels[i], m.labels[part[i]]);
+    }
+    EXPECT_EQ(s, m.subset(part)) << "subset is the same";
+  }
+  EXPECT_EQ(parts.subset(all), m);
+  EXPECT_THROW(parts.subset({5, 5}), std::invalid_argument);
+  EXPECT_THROW(parts.subset({300}), std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace objscan
