@@ -1,6 +1,7 @@
 #include "synth_command.h"
 
 #include <cstdio>
+#include <optional>
 #include <stdexcept>
 
 #include "objscan/capture/synthetic/synthetic_recording.h"
@@ -12,7 +13,8 @@
 namespace objscan::app {
 
 void runSynth(const SynthOptions& options) {
-  if (options.noise != "on" && options.noise != "off" && options.noise != "full") {
+  const std::optional<capture::SensorModelConfig> sensor = capture::sensorForNoise(options.noise);
+  if (!sensor) {
     throw std::invalid_argument("--noise must be 'on', 'full' or 'off', not '" + options.noise +
                                 "'");
   }
@@ -30,9 +32,6 @@ void runSynth(const SynthOptions& options) {
   capture::HandheldPathConfig path_config;
   path_config.frames = options.frames;
   path_config.seed = options.seed;
-  capture::SensorModelConfig sensor;
-  sensor.enabled = options.noise != "off";
-  if (options.noise == "full") sensor = sensor.withDeviceDistortion();
   const Intrinsics intrinsics = options.intrinsics.empty() ? Intrinsics::xtionDefault()
                                                            : readIntrinsicsJson(options.intrinsics);
 
@@ -43,7 +42,7 @@ void runSynth(const SynthOptions& options) {
   std::vector<capture::Visibility> visibility;
   {
     ProgressBar progress("rendering frames", path.size());
-    visibility = capture::writeSyntheticRecording(scene, path, intrinsics, sensor, options.seed,
+    visibility = capture::writeSyntheticRecording(scene, path, intrinsics, *sensor, options.seed,
                                                   options.out, &progress);
   }
   std::size_t never_seen = 0;

@@ -1,5 +1,7 @@
 #include "objscan/capture/synthetic/sensor_model.h"
 
+#include <optional>
+#include <string_view>
 #include <tbb/parallel_for.h>
 
 #include <Eigen/Core>
@@ -202,6 +204,18 @@ cv::Mat applySensorModel(const render::RenderedView& view, const Intrinsics& in,
     }
   });
   return out;
+}
+
+std::optional<SensorModelConfig> sensorForNoise(std::string_view level) {
+  SensorModelConfig sensor;
+  if (level == "off") {
+    sensor.enabled = false;
+  } else if (level == "full") {
+    sensor = sensor.withDeviceDistortion();
+  } else if (level != "on") {
+    return std::nullopt;
+  }
+  return sensor;
 }
 
 }  // namespace objscan::capture

@@ -117,11 +117,9 @@ SynthSpec parseSynthSpec(const std::string& spec) {
       if (!objects) failValue(spec, key, "must be a whole number from 1 to 30", value);
       result.scene.objects = *objects;
     } else if (key == "noise") {
-      if (value != "on" && value != "off" && value != "full") {
-        failValue(spec, key, "must be 'on', 'full' or 'off'", value);
-      }
-      result.sensor.enabled = value != "off";
-      if (value == "full") result.sensor = result.sensor.withDeviceDistortion();
+      const std::optional<SensorModelConfig> sensor = sensorForNoise(value);
+      if (!sensor) failValue(spec, key, "must be 'on', 'full' or 'off'", value);
+      result.sensor = *sensor;
     } else if (key == "clutter") {
       if (value != "plain" && value != "hard") {
         failValue(spec, key, "must be 'plain' or 'hard'", value);

@@ -1,6 +1,8 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
+#include <string_view>
 #include <opencv2/core/mat.hpp>
 
 #include "objscan/core/intrinsics.h"
@@ -70,6 +72,11 @@ struct SensorModelConfig {
   /// reading at depth z (metres).
   double distortionFactor(double u_px, double v_px, double z_m, int width_px, int height_px) const;
 };
+
+/// The sensor of a noise level as `objscan synth --noise` and the source `synth:<seed>,noise=`
+/// name it: "on" (the default model), "full" (with withDeviceDistortion) or "off" (exact depth);
+/// nothing for another word.
+std::optional<SensorModelConfig> sensorForNoise(std::string_view level);
 
 /// Returns the sensor's depth image (CV_32FC1, metres, 0 = no reading) for an ideal view.
 /// Deterministic for a given seed; rows are processed in parallel.
