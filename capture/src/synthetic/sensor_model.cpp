@@ -1,7 +1,5 @@
 #include "objscan/capture/synthetic/sensor_model.h"
 
-#include <optional>
-#include <string_view>
 #include <tbb/parallel_for.h>
 
 #include <Eigen/Core>
@@ -9,7 +7,9 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <stdexcept>
+#include <string_view>
 #include <string>
 #include <vector>
 
