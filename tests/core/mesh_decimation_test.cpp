@@ -64,8 +64,10 @@ TEST(DecimateByClustering, FitsTheLimitStaysOnTheSurfaceAndMapsEveryVertex) {
           << v;
     }
     EXPECT_LT(unmapped, mesh.positions.size() / 100) << "only vertices of collapsed triangles";
-    // The preview lies on the surface, within a cell (the wave bends less than that).
-    const MeshDistance surface(mesh, 2 * d.cell_m);
+    // The preview lies on the surface, within a cell (the wave bends less than that). The look-up
+    // reaches just that far (a farther vertex finds nothing, at infinity, and fails): a wider
+    // reach made this check most of the test's time under the sanitizers.
+    const MeshDistance surface(mesh, 1.01f * d.cell_m);
     for (const Eigen::Vector3f& p : d.mesh.positions) {
       EXPECT_LE(surface.closest(p).distance_m, d.cell_m);
     }
