@@ -73,9 +73,10 @@ Command addEvalCommand(CLI::App& app) {
   addDiscoveryOptions(eval, eval_options.config);
   addSceneReading(eval, eval_options.reading);
   eval->add_flag("--align-truth", eval_options.reading.align_truth,
-                 "Lay each fused mesh onto its labelled mesh (rigid ICP) before the labels move "
-                 "onto it: a fusion's drift and its sensor's depth bias displace the map from the "
-                 "truth by as much as a small object is wide (docs/discovery.md)");
+                 "Lay the fused mesh of each scene folder onto its scene_gt.ply (rigid ICP) "
+                 "before the labels move onto it: a fusion's drift and its sensor's depth bias "
+                 "displace the map from the truth by as much as a small object is wide "
+                 "(docs/discovery.md)");
   eval->add_option("--splits", eval_options.splits, "Random train/test halvings")
       ->check(wholeNumberFrom(1))
       ->capture_default_str();

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -116,6 +117,9 @@ TriangleMesh TriangleMesh::subset(const std::vector<std::int32_t>& vertices) con
 }
 
 MeshSubsets::MeshSubsets(const TriangleMesh& mesh) : mesh_(mesh) {
+  if (mesh.triangles.size() >= std::numeric_limits<std::uint32_t>::max()) {
+    throw std::invalid_argument("MeshSubsets: too many triangles for 32-bit indices");
+  }
   const std::size_t n = mesh.positions.size();
   const auto valid = [n](const Eigen::Vector3i& t) {
     return t.minCoeff() >= 0 && static_cast<std::size_t>(t.maxCoeff()) < n;
@@ -129,7 +133,8 @@ MeshSubsets::MeshSubsets(const TriangleMesh& mesh) : mesh_(mesh) {
   std::vector<std::uint32_t> next(first_.begin(), first_.end() - 1);
   for (std::size_t i = 0; i < mesh.triangles.size(); ++i) {
     const Eigen::Vector3i& t = mesh.triangles[i];
-    if (valid(t)) by_vertex_[next[static_cast<std::size_t>(t.minCoeff())]++] = static_cast<std::uint32_t>(i);
+    if (!valid(t)) continue;
+    by_vertex_[next[static_cast<std::size_t>(t.minCoeff())]++] = static_cast<std::uint32_t>(i);
   }
 }
 

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <stdexcept>
 #include <unordered_map>
 
@@ -46,11 +47,15 @@ TruthAlignment alignToTruth(const TriangleMesh& mesh, const TriangleMesh& truth,
   constexpr std::size_t kMaxSamples = 5000;
   constexpr std::size_t kMinPairs = 100;
   constexpr int kMaxIterations = 30;
-  constexpr double kStillM = 1e-5;                           // 0.01 mm
-  constexpr double kStillRad = 1e-3 * 3.14159265358979 / 180.0;  // 0.001 degrees
-  const std::size_t stride = std::max<std::size_t>(1, mesh.positions.size() / kMaxSamples);
+  constexpr double kStillM = 1e-5;                             // 0.01 mm
+  constexpr double kStillRad = 1e-3 * std::numbers::pi / 180;  // 0.001 degrees
+  // Damping of the normal equations, relative to their mean diagonal: a direction the geometry
+  // leaves free (along a lone plane) stays where it is instead of dividing by round-off.
+  constexpr double kDamping = 1e-6;
+  const std::size_t n_vertices = mesh.positions.size();
+  const std::size_t stride = std::max<std::size_t>(1, (n_vertices + kMaxSamples - 1) / kMaxSamples);
   std::vector<std::size_t> samples;
-  for (std::size_t v = 0; v < mesh.positions.size(); v += stride) samples.push_back(v);
+  for (std::size_t v = 0; v < n_vertices; v += stride) samples.push_back(v);
 
   const MeshDistance distance(truth, reach_m);
   struct Pair {
@@ -70,7 +75,7 @@ TruthAlignment alignToTruth(const TriangleMesh& mesh, const TriangleMesh& truth,
       const Eigen::Vector3d n = (truth.positions[t[1]] - truth.positions[t[0]])
                                     .cross(truth.positions[t[2]] - truth.positions[t[0]])
                                     .cast<double>();
-      if (n.norm() <= 0.0) return;
+      if (!(n.norm() > 0.0)) return;
       pr.q = c.point.cast<double>();
       pr.n = n.normalized();
       pr.found = true;
@@ -85,12 +90,15 @@ TruthAlignment alignToTruth(const TriangleMesh& mesh, const TriangleMesh& truth,
     return std::make_pair(n, n ? static_cast<float>(std::sqrt(sum_sq / static_cast<double>(n)))
                                : 0.0f);
   };
-  // Point-to-plane steps (Chen and Medioni; linearised as Low, 2004): the small turn w and shift
-  // t that minimise the sum of ((p + w x p + t - q) . n)^2. On a scene of large planes they
-  // converge in a few steps where point-to-point ICP slides along the planes for dozens.
+  // Point-to-plane steps (Chen and Medioni; linearised as Low, 2004): the small turn w about the
+  // pairs' centroid c and the shift t that minimise the sum of ((p + w x (p - c) + t - q) . n)^2.
+  // On a scene of large planes they converge in a few steps where point-to-point ICP slides
+  // along the planes for dozens. Turning about the centroid, not the world's origin, keeps the
+  // turn and the shift apart, so the stopping test means what it says wherever the scene lies.
   TruthAlignment out;
+  out.samples = samples.size();
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  for (out.iterations = 0; out.iterations < kMaxIterations; ++out.iterations) {
+  while (out.iterations < kMaxIterations) {
     const auto [n, rms] = pairUp(T);
     if (out.iterations == 0) out.rms_before_m = rms;
     if (n < kMinPairs) {
@@ -98,28 +106,45 @@ TruthAlignment alignToTruth(const TriangleMesh& mesh, const TriangleMesh& truth,
           "too few of the mesh's vertices lie near the ground truth to align them (" +
           std::to_string(n) + "); is the mesh in the truth's frame?");
     }
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (const Pair& pr : pairs) {
+      if (pr.found) c += pr.p;
+    }
+    c /= static_cast<double>(n);
     Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
     Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
     for (const Pair& pr : pairs) {
       if (!pr.found) continue;
       Eigen::Matrix<double, 6, 1> J;
-      J << pr.p.cross(pr.n), pr.n;
+      J << (pr.p - c).cross(pr.n), pr.n;
       A += J * J.transpose();
       b -= J * (pr.p - pr.q).dot(pr.n);
     }
+    A.diagonal().array() += kDamping * A.trace() / 6.0;
     const Eigen::Matrix<double, 6, 1> x = A.ldlt().solve(b);
     if (!x.allFinite()) break;
     const Eigen::Vector3d w = x.head<3>();
+    // p -> R (p - c) + c + t.
     Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
     if (w.norm() > 0.0) step.linear() = Eigen::AngleAxisd(w.norm(), w.normalized()).matrix();
-    step.translation() = x.tail<3>();
+    step.translation() = c - step.linear() * c + x.tail<3>();
     T = step * T;
-    if (x.tail<3>().norm() < kStillM && w.norm() < kStillRad) break;
+    ++out.iterations;
+    if (x.tail<3>().norm() < kStillM && w.norm() < kStillRad) {
+      out.converged = true;
+      break;
+    }
   }
   const auto [n, rms] = pairUp(T);
   out.T_truth_mesh = T.cast<float>();
   out.pairs = n;
   out.rms_after_m = rms;
+  double moved_sq = 0.0;
+  for (std::size_t v : samples) {
+    const Eigen::Vector3d p = mesh.positions[v].cast<double>();
+    moved_sq += (T * p - p).squaredNorm();
+  }
+  out.moved_m = static_cast<float>(std::sqrt(moved_sq / static_cast<double>(samples.size())));
   return out;
 }
 

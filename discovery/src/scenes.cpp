@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <map>
+#include <numbers>
 #include <set>
 #include <system_error>
 #include <utility>
@@ -27,21 +28,29 @@ namespace objscan::discovery {
 namespace {
 
 /// `mesh` laid onto `truth` by alignToTruth (its positions only), with a line saying how far it
-/// moved.
+/// moved, and a warning when the fit did not settle or made things clearly worse. (Point-to-plane
+/// steps minimise the distance along the truth's normals, so the RMS to the closest points can
+/// rise by a hair on a mesh already in place: only a tenth more counts.)
 TriangleMesh alignedTo(const TriangleMesh& truth, const std::filesystem::path& truth_path,
                        const TriangleMesh& mesh) {
   const TruthAlignment a = alignToTruth(mesh, truth);
   TriangleMesh moved;
   moved.positions.reserve(mesh.positions.size());
   for (const Eigen::Vector3f& p : mesh.positions) moved.positions.push_back(a.T_truth_mesh * p);
-  char line[200];
+  char line[240];
   std::snprintf(line, sizeof line,
-                ": the mesh laid onto it: moved %.1f mm, turned %.2f degrees; RMS distance "
-                "%.1f -> %.1f mm (%zu vertices, %d steps)",
-                1000.0 * a.T_truth_mesh.translation().norm(),
-                Eigen::AngleAxisf(a.T_truth_mesh.rotation()).angle() * 180.0 / 3.14159265358979,
-                1000.0 * a.rms_before_m, 1000.0 * a.rms_after_m, a.pairs, a.iterations);
+                ": the mesh laid onto it: moved %.1f mm (RMS), turned %.2f degrees; RMS "
+                "distance %.1f -> %.1f mm (%zu of %zu vertices, %d steps)",
+                1000.0 * a.moved_m,
+                Eigen::AngleAxisf(a.T_truth_mesh.rotation()).angle() * 180.0 / std::numbers::pi,
+                1000.0 * a.rms_before_m, 1000.0 * a.rms_after_m, a.pairs, a.samples,
+                a.iterations);
   log::info(truth_path.string() + line);
+  if (!a.converged || a.rms_after_m > 1.1f * a.rms_before_m) {
+    log::warning(truth_path.string() + line +
+                 (a.converged ? ": the fit made the distance worse"
+                              : ": the fit did not settle in its steps"));
+  }
   return moved;
 }
 
@@ -122,6 +131,13 @@ std::optional<Eigen::Vector3f> viewUpBeside(const fs::path& mesh_path) {
   }
 }
 
+/// Alignment moves a fused mesh onto a separate labelled mesh; labels a scene carries itself
+/// (a mesh's object_id, a PCD's label field) sit on its own points already.
+void warnNotAligned(const fs::path& argument) {
+  log::warning(argument.string() +
+               ": its labels are its own, on its own points: there is nothing to align it to");
+}
+
 GroundTruthObjects groundTruth(const fs::path& argument, const TriangleMesh& mesh, bool align) {
   if (fs::is_directory(argument)) {
     const fs::path truth_path = argument / "scene_gt.ply";
@@ -136,6 +152,7 @@ GroundTruthObjects groundTruth(const fs::path& argument, const TriangleMesh& mes
                      "no labels: give a folder with scene_gt.ply and a fused mesh, or a "
                      "mesh whose vertices carry object_id (or label, with ignore)");
   }
+  if (align) warnNotAligned(argument);
   return GroundTruthObjects(mesh.labels, mesh.ignore);
 }
 
@@ -437,6 +454,7 @@ SceneInput sceneFromCloud(std::string name, const OrganizedCloud& cloud, bool la
 
 SceneInput loadScene(const fs::path& argument, const SceneReading& reading) {
   if (isPcd(argument)) {
+    if (reading.labelled && reading.align_truth) warnNotAligned(argument);
     SceneInput scene =
         sceneFromCloud(argument.string(), organizedCloudOf(argument, reading.intrinsics),
                        reading.labelled, reading.meshing);

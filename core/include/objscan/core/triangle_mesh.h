@@ -56,7 +56,7 @@ struct TriangleMesh {
   /// The part of the mesh on `vertices` (increasing indices into it): those vertices with their
   /// normals, colours, labels, weights and ignore flags, renumbered in order, and the triangles
   /// whose three vertices are all among them. Throws std::invalid_argument for an index outside
-  /// the mesh or out of order.
+  /// the mesh or out of order. A triangle with an index outside the mesh is in no subset.
   TriangleMesh subset(const std::vector<std::int32_t>& vertices) const;
 
   friend bool operator==(const TriangleMesh&, const TriangleMesh&) = default;
@@ -68,8 +68,11 @@ struct TriangleMesh {
 /// The mesh must outlive this and not change.
 class MeshSubsets {
  public:
+  /// Throws std::invalid_argument for a mesh of 2^32 triangles or more.
   explicit MeshSubsets(const TriangleMesh& mesh);
-  /// The same as mesh.subset(vertices), triangles in the mesh's order.
+  MeshSubsets(TriangleMesh&&) = delete;  // it keeps a reference to the mesh
+  /// The same as mesh.subset(vertices), triangles in the mesh's order. A triangle with an index
+  /// outside the mesh is in no subset.
   TriangleMesh subset(const std::vector<std::int32_t>& vertices) const;
 
  private:

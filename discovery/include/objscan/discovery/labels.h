@@ -22,20 +22,25 @@ std::vector<std::int32_t> transferLabels(const TriangleMesh& mesh, const Triangl
 /// How a fused mesh was laid onto its ground truth (alignToTruth).
 struct TruthAlignment {
   Eigen::Isometry3f T_truth_mesh = Eigen::Isometry3f::Identity();  ///< mesh frame -> truth's
+  /// How far the motion moves the mesh: the RMS of |T p - p| over the picked vertices (the
+  /// translation alone would count the turn's lever arm from the world's origin).
+  float moved_m = 0.0f;
   float rms_before_m = 0.0f;  ///< RMS distance of the paired vertices to the truth, unmoved
   float rms_after_m = 0.0f;   ///< the same, moved
-  std::size_t pairs = 0;      ///< vertices within reach of the truth at the end
-  int iterations = 0;
+  std::size_t samples = 0;    ///< vertices picked
+  std::size_t pairs = 0;      ///< of them, within reach of the truth at the end
+  int iterations = 0;         ///< steps taken
+  bool converged = false;     ///< the last step moved less than the stopping test's bounds
 };
 
 /// The rigid motion that lays `mesh` onto the surface of `truth` (both in metres): point-to-plane
-/// ICP from the identity, each of up to 5,000 evenly picked vertices paired
-/// with the closest point of `truth` within `reach_m`, each step a linear least-squares solve, until
-/// a step moves less than 0.01 mm and 0.001 degrees (at most 30 steps). A fusion drifts and its
+/// ICP from the identity on at most 5,000 evenly picked vertices, each paired with the closest
+/// point of `truth` within `reach_m`, each step a damped linear least-squares solve, until a
+/// step moves less than 0.01 mm and 0.001 degrees (at most 30 steps). A fusion drifts and its
 /// sensor's depth is biased, so its map is displaced from the truth by millimetres to
 /// centimetres, as much as a small object is wide; evaluations of reconstructions align first
 /// for the same reason (TUM's ATE, Horn). Throws std::invalid_argument when `truth` has no
-/// triangles or fewer than 100 vertices lie within reach.
+/// triangles or fewer than 100 picked vertices lie within reach.
 TruthAlignment alignToTruth(const TriangleMesh& mesh, const TriangleMesh& truth,
                             float reach_m = 0.02f);
 

@@ -48,8 +48,9 @@ struct SceneReading {
   /// Also the ground truth: scene_gt.ply in a scene folder, the mesh's own object_id, or a PCD's
   /// label field (each object part an object; SceneInput::whole_objects merges the parts).
   bool labelled = false;
-  /// With `labelled`: lay each fused mesh onto its labelled mesh (scene_gt.ply, or a labelled
-  /// fusion) before the labels move onto it (truthFromMesh's `align`).
+  /// With `labelled`: lay the fused mesh of a scene folder onto the folder's scene_gt.ply before
+  /// the labels move onto it (truthFromMesh's `align`). A scene whose labels are its own (a
+  /// mesh's object_id, a PCD's label field) has nothing to be aligned to: a warning says so.
   bool align_truth = false;
   /// The file's content hash for the catalog (a run without one need not read the file twice).
   bool hash = true;
