@@ -87,8 +87,8 @@ TruthAlignment alignToTruth(const TriangleMesh& mesh, const TriangleMesh& truth,
       ++n;
       sum_sq += (pr.q - pr.p).squaredNorm();
     }
-    return std::make_pair(n, n ? static_cast<float>(std::sqrt(sum_sq / static_cast<double>(n)))
-                               : 0.0f);
+    return std::make_pair(
+        n, n ? static_cast<float>(std::sqrt(sum_sq / static_cast<double>(n))) : 0.0f);
   };
   // Point-to-plane steps (Chen and Medioni; linearised as Low, 2004): the small turn w about the
   // pairs' centroid c and the shift t that minimise the sum of ((p + w x (p - c) + t - q) . n)^2.

@@ -43,8 +43,7 @@ TriangleMesh alignedTo(const TriangleMesh& truth, const std::filesystem::path& t
                 "distance %.1f -> %.1f mm (%zu of %zu vertices, %d steps)",
                 1000.0 * a.moved_m,
                 Eigen::AngleAxisf(a.T_truth_mesh.rotation()).angle() * 180.0 / std::numbers::pi,
-                1000.0 * a.rms_before_m, 1000.0 * a.rms_after_m, a.pairs, a.samples,
-                a.iterations);
+                1000.0 * a.rms_before_m, 1000.0 * a.rms_after_m, a.pairs, a.samples, a.iterations);
   log::info(truth_path.string() + line);
   if (!a.converged || a.rms_after_m > 1.1f * a.rms_before_m) {
     log::warning(truth_path.string() + line +

@@ -168,9 +168,9 @@ void writeObjects(const fs::path& partial, const Hypotheses& hypotheses,
     if (!parts[scene]) parts[scene].emplace(run.scenes[scene].mesh);
     const HypothesisRecord& h = hypotheses.hypotheses.at(i);
     const fs::path file = partial / fs::path(h.file).filename();
-    writeFileAtomically(file,
-                        encodeMesh(parts[scene]->subset(run.ranked[i].hypothesis.segment.vertices),
-                                   format, ups[scene]));
+    writeFileAtomically(
+        file, encodeMesh(parts[scene]->subset(run.ranked[i].hypothesis.segment.vertices), format,
+                         ups[scene]));
     if (h.box) writeJson(partial / rankFileName(h.rank, ".json"), objectPoseJson(h));
   }
 }

@@ -143,7 +143,9 @@ TEST(AlignToTruth, LaysADisplacedFusionBackOntoItsTruth) {
   // Within 1 mm anywhere on the 80 cm floor: a tenth of the labels' reach. (The other diagonals
   // slant the boxes' sides differently, which pulls the fit by a fraction of a millimetre.)
   float worst = 0.0f;
-  for (const Eigen::Vector3f& p : truth.positions) worst = std::max(worst, (residual * p - p).norm());
+  for (const Eigen::Vector3f& p : truth.positions) {
+    worst = std::max(worst, (residual * p - p).norm());
+  }
   EXPECT_LT(worst, 0.001f);
   EXPECT_TRUE(a.converged);
   EXPECT_LE(a.iterations, 10);
@@ -174,7 +176,8 @@ TEST(AlignToTruth, TheLabelsFollowTheMeshBack) {
   writePly(dir / "scene_gt.ply", truth);
   const GroundTruthObjects plain = truthFromMesh(dir / "scene_gt.ply", fused);
   const GroundTruthObjects aligned = truthFromMesh(dir / "scene_gt.ply", fused, true);
-  const auto cube = static_cast<std::size_t>(std::count(truth.labels.begin(), truth.labels.end(), 2));
+  const auto cube =
+      static_cast<std::size_t>(std::count(truth.labels.begin(), truth.labels.end(), 2));
   EXPECT_EQ(cube, 16u) << "4 x 4 vertices on its top";
   EXPECT_LT(plain.objectSize(2), cube / 2);
   EXPECT_EQ(aligned.objectSize(2), cube);

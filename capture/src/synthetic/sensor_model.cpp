@@ -9,8 +9,8 @@
 #include <limits>
 #include <optional>
 #include <stdexcept>
-#include <string_view>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace objscan::capture {
