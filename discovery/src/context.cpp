@@ -19,32 +19,18 @@ namespace objscan::discovery {
 
 namespace {
 
-/// A support plane turned so that its normal points to the free side, where the things standing
-/// on it are: the side its own vertices' normals face (fused and single-view normals point out of
-/// the surface, towards where the camera was). Heights are over the support's own surface
-/// (SupportPlane::height), which a fused table bends away from its plane.
+/// A support seen from its free side (SupportPlane::up_sign): its normal turned there, and
+/// heights over its own surface (SupportPlane::height, which a fused table bends away from its
+/// plane) counted up from it.
 struct UpPlane {
   Eigen::Vector3f up;
   const SupportPlane* support;
-  float sign;  ///< +1 when `up` is the support's normal, -1 when it is turned
-  float height(const Eigen::Vector3f& p) const { return sign * support->height(p); }
+  float height(const Eigen::Vector3f& p) const { return support->up_sign * support->height(p); }
 };
 
-/// A support vertex belongs to a plane's own surface (for its orientation) within this distance
-/// of it: twice the supports' band (SupportConfig::distance_m).
-constexpr float kOwnSurfaceM = 0.02f;
-
-std::vector<UpPlane> orientedPlanes(const TriangleMesh& mesh, const Supports& supports) {
+std::vector<UpPlane> orientedPlanes(const Supports& supports) {
   std::vector<UpPlane> planes;
-  for (const SupportPlane& p : supports.planes) {
-    double facing = 0.0;
-    for (std::size_t v = 0; v < mesh.positions.size(); ++v) {
-      if (!supports.on_support[v]) continue;
-      if (std::abs(p.height(mesh.positions[v])) > kOwnSurfaceM) continue;
-      facing += p.normal.dot(mesh.normals[v]);
-    }
-    planes.push_back(facing >= 0.0 ? UpPlane{p.normal, &p, 1.0f} : UpPlane{-p.normal, &p, -1.0f});
-  }
+  for (const SupportPlane& p : supports.planes) planes.push_back({p.up(), &p});
   return planes;
 }
 
@@ -222,9 +208,8 @@ bool broadLevelSurface(const TriangleMesh& mesh, const PointIndex& all_index, co
 
 }  // namespace
 
-std::optional<Eigen::Vector3f> groundUp(const TriangleMesh& mesh, const Supports& supports,
-                                        const ContextConfig& config) {
-  const std::vector<UpPlane> planes = orientedPlanes(mesh, supports);
+std::optional<Eigen::Vector3f> groundUp(const Supports& supports, const ContextConfig& config) {
+  const std::vector<UpPlane> planes = orientedPlanes(supports);
   const int ground = groundPlane(planes, supports.planes, config);
   if (ground < 0) return std::nullopt;
   return planes[static_cast<std::size_t>(ground)].up;
@@ -284,7 +269,7 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
       throw std::invalid_argument("a segment indexes outside the mesh");
     }
   }
-  const std::vector<UpPlane> planes = orientedPlanes(mesh, supports);
+  const std::vector<UpPlane> planes = orientedPlanes(supports);
   // The planes that hold candidates up: those level with the ground when the camera's up finds
   // one, else all.
   const int ground = groundPlane(planes, supports.planes, config);

@@ -16,10 +16,10 @@
 #include <tbb/parallel_for.h>
 #include <tbb/partitioner.h>
 
-#include "objscan/core/clock.h"
-#include "objscan/discovery/segmentation.h"
 #include "connected_regions.h"
 #include "ground.h"
+#include "objscan/core/clock.h"
+#include "objscan/discovery/segmentation.h"
 #include "plane_tests.h"
 #include "stopwatch.h"
 
@@ -140,8 +140,8 @@ void DiscoveryConfig::validate() const {
 
 void ObjectSetConfig::validate() const {
   context.validate();
-  for (const double w : {region_share_weight, on_surface_penalty, floating_penalty,
-                         single_view_floating_penalty}) {
+  for (const double w :
+       {region_share_weight, on_surface_penalty, floating_penalty, single_view_floating_penalty}) {
     if (!(w >= 0.0) || !std::isfinite(w)) {
       throw std::invalid_argument(
           "the object set's region share weight and footing penalties must be numbers >= 0");
@@ -223,9 +223,8 @@ EffectiveScales effectiveScales(const MeshGraph& graph, const TriangleMesh& mesh
           1, static_cast<std::size_t>(std::lround(static_cast<double>(count) * density)));
     };
     e.min_size = scaled(config.min_size);
-    e.evidence_vertices = config.objects.evidence_vertices == 0
-                              ? 0
-                              : scaled(config.objects.evidence_vertices);
+    e.evidence_vertices =
+        config.objects.evidence_vertices == 0 ? 0 : scaled(config.objects.evidence_vertices);
     e.support_min_vertices = scaled(config.supports.min_vertices);
     e.foot_trim_vertices = scaled(config.supports.foot_trim_vertices);
     e.top_min_vertices = scaled(config.supports.top_min_vertices);
@@ -248,8 +247,8 @@ std::vector<double> averageScores(const std::vector<ShapeMeasures>& all) {
 namespace {
 
 /// The scene's supports, or none (every vertex off them) when they are disabled.
-Supports supportsOf(const TriangleMesh& mesh, const MeshGraph& graph,
-                    const DiscoveryConfig& config, const EffectiveScales& effective) {
+Supports supportsOf(const TriangleMesh& mesh, const MeshGraph& graph, const DiscoveryConfig& config,
+                    const EffectiveScales& effective) {
   if (config.supports.enabled) {
     return findSupports(mesh, graph, config.supports, effective.support_min_vertices);
   }
@@ -313,7 +312,7 @@ void appendOnLevelTops(const TriangleMesh& mesh, const MeshGraph& graph, const S
                        const DiscoveryConfig& config, const EffectiveScales& effective,
                        std::vector<Segment>& segments) {
   if (!config.supports.enabled || !config.supports.level_tops) return;
-  const std::optional<Eigen::Vector3f> up = groundUp(mesh, supports, config.objects.context);
+  const std::optional<Eigen::Vector3f> up = groundUp(supports, config.objects.context);
   if (!up) return;
   const std::size_t n = mesh.positions.size();
   const float min_cos = cosOfDegrees(config.supports.top_level_deg);
@@ -381,22 +380,21 @@ void appendOnLevelTops(const TriangleMesh& mesh, const MeshGraph& graph, const S
   // a lower top (the lid of a box on a box).
   std::vector<std::uint8_t> over(n, 0);
   std::vector<float> over_height(n, 0.0f);  // the height of the top a vertex lies over
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n),
-                    [&](const tbb::blocked_range<std::size_t>& range) {
-                      for (std::size_t v = range.begin(); v < range.end(); ++v) {
-                        if (supports.on_support[v]) continue;
-                        const Eigen::Vector3f& p = mesh.positions[v];
-                        for (const Top& t : tops) {
-                          const float h = up->dot(p) - t.height;
-                          if (h > kOverTopM && h < kOverTopMaxM &&
-                              along(p - t.middle) <= t.reach + kTopMarginM &&
-                              (!over[v] || t.height > over_height[v])) {
-                            over[v] = 1;
-                            over_height[v] = t.height;
-                          }
-                        }
-                      }
-                    });
+  tbb::parallel_for(
+      tbb::blocked_range<std::size_t>(0, n), [&](const tbb::blocked_range<std::size_t>& range) {
+        for (std::size_t v = range.begin(); v < range.end(); ++v) {
+          if (supports.on_support[v]) continue;
+          const Eigen::Vector3f& p = mesh.positions[v];
+          for (const Top& t : tops) {
+            const float h = up->dot(p) - t.height;
+            if (h > kOverTopM && h < kOverTopMaxM && along(p - t.middle) <= t.reach + kTopMarginM &&
+                (!over[v] || t.height > over_height[v])) {
+              over[v] = 1;
+              over_height[v] = t.height;
+            }
+          }
+        }
+      });
   // A vertex over a top with a neighbour that is over none and higher than that top's fold
   // belongs to something larger than the top holds (the wall of a bowl round its flat bottom):
   // no thing standing on the top holds it.
@@ -535,9 +533,9 @@ void addContext(const TriangleMesh& mesh, SceneCandidates& candidates,
   }
   const MeshGraph graph = buildMeshGraph(mesh);
   candidates.effective = effectiveScales(graph, mesh, config);
-  candidates.context = segmentContexts(mesh, graph,
-                                       supportsOf(mesh, graph, config, candidates.effective),
-                                       candidates.segments, config.objects.context);
+  candidates.context =
+      segmentContexts(mesh, graph, supportsOf(mesh, graph, config, candidates.effective),
+                      candidates.segments, config.objects.context);
 }
 
 void addRecurrence(SceneCandidates& candidates, const RecurrenceIndex& index, std::int64_t scene_id,
@@ -608,9 +606,9 @@ std::vector<Hypothesis> rankObjects(const TriangleMesh& mesh, const SceneCandida
     const double f = evidence > 0.0 ? count / (count + evidence) : 1.0;
     // A patch of a support stands on nothing of its own, and what reaches up to a support is
     // part of what holds it: they pay what a floating one does.
-    const double penalty = c.footing == Footing::kSupport    ? 0.0
+    const double penalty = c.footing == Footing::kSupport     ? 0.0
                            : c.footing == Footing::kOnSurface ? config.objects.on_surface_penalty
-                                                             : config.objects.floating_penalty;
+                                                              : config.objects.floating_penalty;
     object_scores[i] = (scores[i] >= 0.0 ? scores[i] * f : scores[i] / f) +
                        config.objects.region_share_weight *
                            std::log(std::max(c.share_of_region, kMinRegionShare)) -
@@ -644,8 +642,8 @@ std::vector<Hypothesis> rankObjects(const TriangleMesh& mesh, const SceneCandida
     }
     for (std::int32_t v : kept.vertices) taken[static_cast<std::size_t>(v)] = 1;
     chosen[i] = 1;
-    Hypothesis h{std::move(kept), candidates.measures[i], scores[i], candidates.context[i],
-                 object_scores[i], objects.size() + 1};
+    Hypothesis h{std::move(kept),       candidates.measures[i], scores[i],
+                 candidates.context[i], object_scores[i],       objects.size() + 1};
     objects.push_back(std::move(h));
   }
   // The alternatives: what suppression keeps that is neither an object nor, by suppression's own
@@ -662,8 +660,8 @@ std::vector<Hypothesis> rankObjects(const TriangleMesh& mesh, const SceneCandida
       copy = vertexIoU(s.vertices, o) > config.max_iou;
     }
     if (copy) continue;
-    objects.push_back({s, candidates.measures[i], scores[i], candidates.context[i],
-                       object_scores[i], 0});
+    objects.push_back(
+        {s, candidates.measures[i], scores[i], candidates.context[i], object_scores[i], 0});
   }
   return objects;
 }

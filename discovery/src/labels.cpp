@@ -6,8 +6,8 @@
 #include <stdexcept>
 #include <unordered_map>
 
-#include <Eigen/Geometry>
 #include <tbb/parallel_for.h>
+#include <Eigen/Geometry>
 
 #include "objscan/core/mesh_distance.h"
 #include "point_index.h"

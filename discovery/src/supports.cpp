@@ -281,6 +281,15 @@ Supports findSupports(const TriangleMesh& mesh, const MeshGraph& graph, const Su
       }
     }
   }
+  for (SupportPlane& p : out.planes) {
+    double facing = 0.0;
+    for (std::size_t v = 0; v < n; ++v) {
+      if (!out.on_support[v]) continue;
+      if (std::abs(p.height(mesh.positions[v])) > kOwnSurfaceM) continue;
+      facing += p.normal.dot(mesh.normals[v]);
+    }
+    p.up_sign = facing >= 0.0 ? 1.0f : -1.0f;
+  }
   return out;
 }
 

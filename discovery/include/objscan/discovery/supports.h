@@ -77,10 +77,19 @@ struct SupportConfig {
   void validate() const;
 };
 
+/// A support's own vertices, for which way it faces (SupportPlane::up_sign) and for what lies on
+/// it: those on a support within this distance of its surface, twice the supports' band
+/// (SupportConfig::distance_m).
+inline constexpr float kOwnSurfaceM = 0.02f;
+
 struct SupportPlane {
   Eigen::Vector3f normal = Eigen::Vector3f::UnitZ();  ///< unit length
   float offset = 0.0f;                                ///< normal . p + offset = 0 on the plane
   std::size_t vertex_count = 0;                       ///< vertices of its support regions
+  /// +1 when the free side, where the things standing on the support are, lies along `normal`,
+  /// -1 when it lies the other way: the side its own vertices' normals face (fused and
+  /// single-view normals point out of the surface, towards where the camera was).
+  float up_sign = 1.0f;
 
   /// The support's own surface: its height over the plane, a quadratic in the coordinates along
   /// `axis_u` and `axis_v` less `centre_u` and `centre_v` (coefficients of 1, u, v, u^2, uv, v^2),
@@ -103,6 +112,8 @@ struct SupportPlane {
   float planeHeight(const Eigen::Vector3f& p) const { return normal.dot(p) + offset; }
   /// The height of `p` over the support's own surface (over the plane when not `curved`).
   float height(const Eigen::Vector3f& p) const;
+  /// The normal turned to the free side (`up_sign`).
+  Eigen::Vector3f up() const { return up_sign * normal; }
 };
 
 struct Supports {
@@ -122,7 +133,8 @@ struct Supports {
 /// within `distance_m` whose normals agree, grouped into connected regions over the mesh's edges;
 /// the regions of at least `min_vertices` (already scaled to the mesh's density) are supports.
 /// Their own surface is then fitted (SupportPlane::surface) and the same is done again against
-/// it. Then the vertices near two supports (folds) join them.
+/// it. Then the vertices near two supports (folds) join them, and each support's free side is
+/// found (SupportPlane::up_sign).
 /// `mesh` must have normals (std::invalid_argument otherwise).
 Supports findSupports(const TriangleMesh& mesh, const MeshGraph& graph, const SupportConfig& config,
                       std::size_t min_vertices);

@@ -1,9 +1,9 @@
 #pragma once
 
 #include <cstdint>
+#include <opencv2/core/mat.hpp>
 #include <optional>
 #include <string_view>
-#include <opencv2/core/mat.hpp>
 
 #include "objscan/core/intrinsics.h"
 #include "objscan/render/offscreen_renderer.h"
