@@ -101,6 +101,37 @@ std::string segmentsCsv(const SceneDiscovery& set, const LabelledSegments& segs)
   return csv.str();
 }
 
+/// hypotheses.csv: every scene's hypotheses in discover's order, each with the ground-truth object
+/// it overlaps most (0: none) and that IoU, so a scene's wrong answers near the top of its list can
+/// be found and looked at. `rank` counts within the scene from 1; `object_rank` is the place in the
+/// object set (0: an alternative); `ignored` is the share of its vertices that the labels say
+/// nothing about (a hand-labelled scene's plant or lamp; 0 without an ignore mask).
+std::string hypothesesCsv(const SceneDiscovery& set) {
+  std::ostringstream csv;
+  csv << std::setprecision(6)
+      << "scene,rank,object_rank,vertices,score,object_score,footing,rise_m,object_id,iou,"
+         "ignored\n";
+  std::vector<std::size_t> rank(set.scenes.size(), 0);
+  for (const discovery::RankedHypothesis& r : set.ranked) {
+    const discovery::Hypothesis& h = r.hypothesis;
+    const discovery::GroundTruthObjects& truth = set.scenes[r.scene].truth.value();
+    const discovery::ObjectMatch m = truth.bestMatch(h.segment.vertices);
+    const auto number = [&](double v) {
+      if (std::isfinite(v)) csv << v;
+    };
+    csv << set.scenes[r.scene].name << ',' << ++rank[r.scene] << ',' << h.object_rank << ','
+        << h.segment.vertices.size() << ',';
+    number(h.score);
+    csv << ',';
+    number(h.object_score);
+    csv << ',' << discovery::toString(h.context.footing) << ',';
+    number(h.context.rise_m);
+    csv << ',' << m.object_id << ',' << m.iou << ',' << truth.ignoredShare(h.segment.vertices)
+        << '\n';
+  }
+  return csv.str();
+}
+
 /// The protocol with segments labelled at `iou`; its CSVs and plot into OUT, its APs into
 /// `summary` and on stdout. False when the labels at this IoU cannot be evaluated (warned).
 bool evaluateAtIou(const EvalCommandOptions& options, const discovery::EvalConfig& eval,
@@ -322,6 +353,7 @@ int runEval(const EvalCommandOptions& options) {
   }
   writeRecall(options.out, recallTable(set, segs), summary);
   writeSceneFigures(options.out, set, categories, summary);
+  writeFileAtomically(options.out / "hypotheses.csv", hypothesesCsv(set));
   writeFileAtomically(options.out / "summary.json",
                       summary.dump(1, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
   report::Settings settings = options.settings;
@@ -329,7 +361,7 @@ int runEval(const EvalCommandOptions& options) {
   report::writeSettings(options.out / report::kSettingsFile, settings);
   std::printf(
       "written       %s (ap.csv, pr_curves.csv/png, *_iou5/8, segments.csv, recall.csv, "
-      "scenes.csv, summary.json, settings.json)\n",
+      "scenes.csv, hypotheses.csv, summary.json, settings.json)\n",
       options.out.c_str());
   return kExitSuccess;
 }

@@ -9,6 +9,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <memory>
 #include <optional>
@@ -623,7 +624,7 @@ TEST(EvalCli, TheProtocolSeparatesWholeObjectsFromHalvesAndWritesItsFiles) {
   const ProcessResult r = objscan(args);
   ASSERT_EQ(r.exit_code, 0) << r.err;
   for (const char* f : {"ap.csv", "pr_curves.csv", "pr_curves.png", "ap_iou5.csv", "ap_iou8.csv",
-                        "segments.csv", "recall.csv", "summary.json"}) {
+                        "segments.csv", "recall.csv", "hypotheses.csv", "summary.json"}) {
     EXPECT_TRUE(fs::is_regular_file(dir / "eval" / f)) << f;
   }
   const nlohmann::json summary = readJson(dir / "eval" / "summary.json");
@@ -636,6 +637,50 @@ TEST(EvalCli, TheProtocolSeparatesWholeObjectsFromHalvesAndWritesItsFiles) {
   // an elongated one that well (a whole mound reaches about 0.5 against it).
   EXPECT_EQ(summary["object_recall"]["objects"], 24);
   EXPECT_DOUBLE_EQ(summary["object_recall"]["candidates_iou_0.7"].get<double>(), 0.5);
+
+  // hypotheses.csv: each scene's list in discover's order, ranks from 1, as many as scenes.csv
+  // says; what each overlaps most, so the round mounds (ids 1, 3, 5) are the rows at IoU 0.7 or
+  // more, each once, standing on the table.
+  std::ifstream in(dir / "eval" / "hypotheses.csv");
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::vector<std::string> rows = objscan::testing::lines(text);
+  ASSERT_FALSE(rows.empty());
+  EXPECT_EQ(
+      rows[0],
+      "scene,rank,object_rank,vertices,score,object_score,footing,rise_m,object_id,iou,ignored");
+  const auto fields = [](const std::string& row) {
+    std::vector<std::string> out(1);
+    for (char c : row) {
+      if (c == ',') {
+        out.emplace_back();
+      } else {
+        out.back().push_back(c);
+      }
+    }
+    return out;
+  };
+  std::map<std::string, std::size_t> listed;
+  std::map<std::string, std::multiset<int>> found;
+  for (std::size_t i = 1; i < rows.size(); ++i) {
+    const std::vector<std::string> f = fields(rows[i]);
+    ASSERT_EQ(f.size(), 11u) << rows[i];
+    EXPECT_EQ(f[10], "0") << "no ignore mask";
+    EXPECT_EQ(std::stoul(f[1]), ++listed[f[0]]) << rows[i];
+    if (std::stod(f[9]) >= 0.7) {
+      found[f[0]].insert(std::stoi(f[8]));
+      EXPECT_EQ(f[6], "support") << rows[i];
+    }
+  }
+  std::ifstream scenes_in(dir / "eval" / "scenes.csv");
+  const std::string scenes_text((std::istreambuf_iterator<char>(scenes_in)),
+                                std::istreambuf_iterator<char>());
+  const std::vector<std::string> scene_rows = objscan::testing::lines(scenes_text);
+  ASSERT_EQ(scene_rows.size(), 5u);
+  for (std::size_t i = 1; i < scene_rows.size(); ++i) {
+    const std::vector<std::string> f = fields(scene_rows[i]);
+    EXPECT_EQ(listed[f[0]], std::stoul(f[4])) << f[0];
+    EXPECT_EQ(found[f[0]], (std::multiset<int>{1, 3, 5})) << f[0];
+  }
 }
 
 TEST(TrainCli, AModelFromTrainScoresDiscover) {
