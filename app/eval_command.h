@@ -32,8 +32,9 @@ struct EvalCommandOptions {
 };
 
 /// `objscan eval`: the paper's protocol on labelled scenes; writes ap.csv, pr_curves.csv,
-/// pr_curves.png, segments.csv, recall.csv, scenes.csv, hypotheses.csv and summary.json into OUT and prints the
-/// AP table, object recall and the per-scene means (by category too). Returns the exit code.
+/// pr_curves.png, segments.csv, recall.csv, scenes.csv, hypotheses.csv and summary.json into OUT
+/// and prints the AP table, object recall and the per-scene means (by category too). Returns the
+/// exit code.
 int runEval(const EvalCommandOptions& options);
 
 struct TrainCommandOptions {
