@@ -101,24 +101,26 @@ std::string segmentsCsv(const SceneDiscovery& set, const LabelledSegments& segs)
   return csv.str();
 }
 
-/// hypotheses.csv: every scene's hypotheses in discover's order, each with the ground-truth object
-/// it overlaps most (0: none) and that IoU, so a scene's wrong answers near the top of its list can
-/// be found and looked at. `rank` counts within the scene from 1; `object_rank` is the place in the
-/// object set (0: an alternative); `ignored` is the share of its vertices that the labels say
-/// nothing about (a hand-labelled scene's plant or lamp; 0 without an ignore mask).
+/// hypotheses.csv: the hypotheses in discover's order (every scene's objects, then the
+/// alternatives), each with the ground-truth object it overlaps most (0: none), that IoU, and the
+/// share of its vertices the labels say nothing about (a hand-labelled scene's plant or lamp; 0
+/// without an ignore mask), so a scene's wrong answers near the top of its list can be found and
+/// looked at. `rank` counts within the scene from 1 (hypotheses.json's counts across scenes);
+/// `object_rank` is the place in the object set (0: an alternative, or every row without the
+/// object set). Matched against the object parts where the truth has whole objects too.
 std::string hypothesesCsv(const SceneDiscovery& set) {
   std::ostringstream csv;
   csv << std::setprecision(6)
       << "scene,rank,object_rank,vertices,score,object_score,footing,rise_m,object_id,iou,"
          "ignored\n";
+  const auto number = [&](double v) {
+    if (std::isfinite(v)) csv << v;
+  };
   std::vector<std::size_t> rank(set.scenes.size(), 0);
   for (const discovery::RankedHypothesis& r : set.ranked) {
     const discovery::Hypothesis& h = r.hypothesis;
     const discovery::GroundTruthObjects& truth = set.scenes[r.scene].truth.value();
     const discovery::ObjectMatch m = truth.bestMatch(h.segment.vertices);
-    const auto number = [&](double v) {
-      if (std::isfinite(v)) csv << v;
-    };
     csv << set.scenes[r.scene].name << ',' << ++rank[r.scene] << ',' << h.object_rank << ','
         << h.segment.vertices.size() << ',';
     number(h.score);

@@ -9,7 +9,6 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <iterator>
 #include <map>
 #include <memory>
 #include <optional>
@@ -638,12 +637,12 @@ TEST(EvalCli, TheProtocolSeparatesWholeObjectsFromHalvesAndWritesItsFiles) {
   EXPECT_EQ(summary["object_recall"]["objects"], 24);
   EXPECT_DOUBLE_EQ(summary["object_recall"]["candidates_iou_0.7"].get<double>(), 0.5);
 
-  // hypotheses.csv: each scene's list in discover's order, ranks from 1, as many as scenes.csv
-  // says; what each overlaps most, so the round mounds (ids 1, 3, 5) are the rows at IoU 0.7 or
-  // more, each once, standing on the table.
-  std::ifstream in(dir / "eval" / "hypotheses.csv");
-  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  const std::vector<std::string> rows = objscan::testing::lines(text);
+  // hypotheses.csv: each scene's list in discover's order (its object set by object score, the
+  // object ranks 1, 2, ..., then the alternatives by score), ranks from 1, as many rows as
+  // scenes.csv says; what each overlaps most, so the round mounds (ids 1, 3, 5) are the rows at
+  // IoU 0.7 or more, each once, standing on the table.
+  const std::vector<std::string> rows =
+      objscan::testing::lines(objscan::testing::readBytes(dir / "eval" / "hypotheses.csv"));
   ASSERT_FALSE(rows.empty());
   EXPECT_EQ(
       rows[0],
@@ -659,26 +658,40 @@ TEST(EvalCli, TheProtocolSeparatesWholeObjectsFromHalvesAndWritesItsFiles) {
     }
     return out;
   };
-  std::map<std::string, std::size_t> listed;
+  struct Listed {
+    std::size_t rows = 0, objects = 0;
+    double last_object_score = HUGE_VAL, last_score = HUGE_VAL;
+  };
+  std::map<std::string, Listed> listed;
   std::map<std::string, std::multiset<int>> found;
   for (std::size_t i = 1; i < rows.size(); ++i) {
     const std::vector<std::string> f = fields(rows[i]);
     ASSERT_EQ(f.size(), 11u) << rows[i];
+    Listed& scene = listed[f[0]];
+    EXPECT_EQ(std::stoul(f[1]), ++scene.rows) << rows[i];
+    EXPECT_GT(std::stoul(f[3]), 0u) << rows[i];
+    if (std::stoul(f[2]) > 0) {
+      EXPECT_EQ(scene.objects, scene.rows - 1) << "an object after an alternative: " << rows[i];
+      EXPECT_EQ(std::stoul(f[2]), ++scene.objects) << rows[i];
+      EXPECT_LE(std::stod(f[5]), scene.last_object_score) << rows[i];
+      scene.last_object_score = std::stod(f[5]);
+    } else {
+      EXPECT_LE(std::stod(f[4]), scene.last_score) << rows[i];
+      scene.last_score = std::stod(f[4]);
+    }
     EXPECT_EQ(f[10], "0") << "no ignore mask";
-    EXPECT_EQ(std::stoul(f[1]), ++listed[f[0]]) << rows[i];
     if (std::stod(f[9]) >= 0.7) {
       found[f[0]].insert(std::stoi(f[8]));
       EXPECT_EQ(f[6], "support") << rows[i];
     }
   }
-  std::ifstream scenes_in(dir / "eval" / "scenes.csv");
-  const std::string scenes_text((std::istreambuf_iterator<char>(scenes_in)),
-                                std::istreambuf_iterator<char>());
-  const std::vector<std::string> scene_rows = objscan::testing::lines(scenes_text);
+  const std::vector<std::string> scene_rows =
+      objscan::testing::lines(objscan::testing::readBytes(dir / "eval" / "scenes.csv"));
   ASSERT_EQ(scene_rows.size(), 5u);
   for (std::size_t i = 1; i < scene_rows.size(); ++i) {
     const std::vector<std::string> f = fields(scene_rows[i]);
-    EXPECT_EQ(listed[f[0]], std::stoul(f[4])) << f[0];
+    EXPECT_EQ(listed[f[0]].rows, std::stoul(f[4])) << f[0];
+    EXPECT_GT(listed[f[0]].objects, 0u) << f[0];
     EXPECT_EQ(found[f[0]], (std::multiset<int>{1, 3, 5})) << f[0];
   }
 }
