@@ -75,6 +75,12 @@ Command addSynthCommand(CLI::App& app) {
       ->capture_default_str();
   synth->add_option("--intrinsics", synth_options.intrinsics,
                     "intrinsics.json (fx, fy, cx, cy, width, height); default: Xtion 640x480");
+  synth
+      ->add_option("--views", synth_options.views,
+                   "Also write this many frames, evenly spread along the path, as labelled single "
+                   "views (views/*.pcd, labels as mOSD's) for objscan eval and discover")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
 
   return {synth, [options] {
             runSynth(*options);

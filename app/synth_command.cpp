@@ -43,7 +43,8 @@ void runSynth(const SynthOptions& options) {
   {
     ProgressBar progress("rendering frames", path.size());
     visibility = capture::writeSyntheticRecording(scene, path, intrinsics, *sensor, options.seed,
-                                                  options.out, &progress);
+                                                  options.out, &progress,
+                                                  static_cast<std::size_t>(options.views));
   }
   std::size_t never_seen = 0;
   for (const auto& v : visibility) {
@@ -62,6 +63,9 @@ void runSynth(const SynthOptions& options) {
               intrinsics.height_px);
   std::printf("visible       %zu of %zu objects in at least one frame\n",
               visibility.size() - never_seen, visibility.size());
+  if (options.views > 0) {
+    std::printf("views         %d frames as labelled single views (views/*.pcd)\n", options.views);
+  }
   std::printf("written       %s (TUM folder; scene_gt.ply, scene_gt.json)\n",
               options.out.string().c_str());
 }

@@ -16,6 +16,8 @@ struct SynthOptions {
   std::string noise = "on";
   std::string clutter = "plain";     ///< "plain" or "hard" (SceneConfig::hard_clutter)
   std::filesystem::path intrinsics;  ///< optional intrinsics.json; Xtion defaults otherwise
+  /// Frames also written as labelled single views (views/*.pcd; writeSyntheticRecording).
+  int views = 0;
 };
 
 /// `objscan synth`: composes a scene, renders it along a hand-held path and writes the recording

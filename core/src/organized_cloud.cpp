@@ -14,6 +14,7 @@
 
 #include <liblzf/lzf.h>
 
+#include "objscan/core/atomic_file.h"
 #include "objscan/core/error.h"
 
 namespace objscan {
@@ -396,6 +397,44 @@ OrganizedCloud readPcd(const fs::path& path) {
                                std::to_string(expected) + " bytes)");
   }
   return decodeBinary(path, h, l, raw.data(), true);
+}
+
+void writePcd(const fs::path& path, const OrganizedCloud& cloud) {
+  const std::size_t n = cloud.points_C.size();
+  if (cloud.width < 0 || cloud.height < 0 ||
+      n != static_cast<std::size_t>(cloud.width) * static_cast<std::size_t>(cloud.height)) {
+    throw std::invalid_argument("writePcd: the cloud's points do not fill its WIDTH x HEIGHT");
+  }
+  if ((!cloud.colors.empty() && cloud.colors.size() != n) ||
+      (!cloud.labels.empty() && cloud.labels.size() != n)) {
+    throw std::invalid_argument("writePcd: one colour and one label per point are needed");
+  }
+  const bool colours = !cloud.colors.empty(), labels = !cloud.labels.empty();
+  std::ostringstream header;
+  header << "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS x y z"
+         << (colours ? " rgb" : "") << (labels ? " label" : "") << "\nSIZE 4 4 4"
+         << (colours ? " 4" : "") << (labels ? " 4" : "") << "\nTYPE F F F" << (colours ? " U" : "")
+         << (labels ? " U" : "") << "\nCOUNT 1 1 1" << (colours ? " 1" : "") << (labels ? " 1" : "")
+         << "\nWIDTH " << cloud.width << "\nHEIGHT " << cloud.height
+         << "\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " << n << "\nDATA binary\n";
+  std::string bytes = header.str();
+  const std::size_t point_size = 12 + (colours ? 4 : 0) + (labels ? 4 : 0);
+  std::size_t at = bytes.size();
+  bytes.resize(at + n * point_size);
+  const auto put = [&](const void* value) {
+    std::memcpy(bytes.data() + at, value, 4);
+    at += 4;
+  };
+  for (std::size_t i = 0; i < n; ++i) {
+    for (int k = 0; k < 3; ++k) put(&cloud.points_C[i][k]);
+    if (colours) {
+      const Rgb8& c = cloud.colors[i];
+      const std::uint32_t packed = std::uint32_t{c.x()} << 16 | std::uint32_t{c.y()} << 8 | c.z();
+      put(&packed);
+    }
+    if (labels) put(&cloud.labels[i]);
+  }
+  writeFileAtomically(path, bytes);
 }
 
 OrganizedCloud cloudOfFrame(const RgbdFrame& frame) {

@@ -15,6 +15,7 @@
 #include "objscan/capture/tum_folder.h"
 #include "objscan/core/error.h"
 #include "objscan/core/mesh_distance.h"
+#include "objscan/core/organized_cloud.h"
 #include "objscan/core/ply_io.h"
 #include "objscan/render/offscreen_renderer.h"
 #include "test_support.h"
@@ -436,6 +437,74 @@ TEST_F(SyntheticRecording, FailureWhileWritingLeavesNoFolderBehind) {
   EXPECT_TRUE(threw);
   EXPECT_EQ(testing::entryCount(dir.path()), 0u)
       << "neither the recording nor its temporary folder remains";
+}
+
+TEST(SyntheticViews, AreTheFramesAsLabelledPcdsOnTheirPixelGrid) {
+  // Two views of six noisy frames: the middles of the path's halves, frames 1 and 4. Each is the
+  // frame's own depth (as the depth PNG stores it, to its 0.2 mm step), colour and label image,
+  // the labels in mOSD's convention, every point on its own pixel's ray.
+  testing::TempDir dir;
+  SceneConfig config;
+  config.objects = 6;
+  config.seed = 9;
+  const SyntheticScene scene = composeScene(config);
+  HandheldPathConfig six;
+  six.frames = 6;
+  const Trajectory path = makeHandheldPath(scene, six);
+  const Intrinsics k = Intrinsics::xtionDefault();
+  writeSyntheticRecording(scene, path, k, SensorModelConfig{}, 3, dir / "rec", nullptr, 2);
+  std::vector<fs::path> views;
+  for (const auto& entry : fs::directory_iterator(dir / "rec" / "views")) views.push_back(entry);
+  std::sort(views.begin(), views.end());
+  ASSERT_EQ(views.size(), 2u);
+  const TumFolder folder(dir / "rec");
+  std::size_t objects_seen = 0;
+  for (std::size_t j = 0; j < views.size(); ++j) {
+    const fs::path frame_png = dir / "rec" / folder.frames()[j == 0 ? 1 : 4].depth;
+    EXPECT_EQ(views[j].stem(), frame_png.stem());
+    const OrganizedCloud cloud = readPcd(views[j]);
+    ASSERT_EQ(cloud.width, k.width_px);
+    ASSERT_EQ(cloud.height, k.height_px);
+    ASSERT_EQ(cloud.labels.size(), cloud.points_C.size());
+    ASSERT_EQ(cloud.colors.size(), cloud.points_C.size());
+    const cv::Mat depth = cv::imread(frame_png.string(), cv::IMREAD_UNCHANGED);
+    const cv::Mat labels =
+        cv::imread((dir / "rec" / "label" / frame_png.filename()).string(), cv::IMREAD_UNCHANGED);
+    const cv::Mat bgr =
+        cv::imread((dir / "rec" / "rgb" / frame_png.filename()).string(), cv::IMREAD_COLOR);
+    ASSERT_EQ(depth.type(), CV_16UC1);
+    std::set<std::uint32_t> ids;
+    std::size_t readings = 0, wrong = 0;
+    for (int v = 0; v < depth.rows; ++v) {
+      for (int u = 0; u < depth.cols; ++u) {
+        const std::size_t i = static_cast<std::size_t>(v * depth.cols + u);
+        const cv::Vec3b c = bgr.at<cv::Vec3b>(v, u);
+        wrong += cloud.colors[i] != Rgb8(c[2], c[1], c[0]);
+        const int png = depth.at<std::uint16_t>(v, u);
+        if (png == 0) {
+          wrong += cloud.valid(i) || cloud.labels[i] != 0;
+          continue;
+        }
+        ++readings;
+        const Eigen::Vector3f& p = cloud.points_C[i];
+        wrong += std::abs(p.z() - png / 5000.0f) > 1.1e-4f;
+        wrong += std::abs(k.fx_px * p.x() / p.z() + k.cx_px - u) > 1e-3;
+        wrong += std::abs(k.fy_px * p.y() / p.z() + k.cy_px - v) > 1e-3;
+        const int id = labels.at<std::uint16_t>(v, u);
+        wrong += cloud.labels[i] != (id > 0 ? 10u * static_cast<std::uint32_t>(id) : 1u);
+        if (id > 0) ids.insert(cloud.labels[i]);
+      }
+    }
+    EXPECT_EQ(wrong, 0u) << views[j];
+    EXPECT_GT(readings, depth.total() / 2) << views[j];
+    objects_seen += ids.size();
+  }
+  EXPECT_GE(objects_seen, 2u) << "the views show objects";
+  // More views than frames: refused before anything is written.
+  EXPECT_THROW(
+      writeSyntheticRecording(scene, path, k, SensorModelConfig{}, 3, dir / "rec2", nullptr, 7),
+      std::invalid_argument);
+  EXPECT_FALSE(fs::exists(dir / "rec2"));
 }
 
 TEST(SyntheticRecordingPaths, TrailingSlashNamesTheSameFolder) {

@@ -132,6 +132,37 @@ TEST(Pcd, ReadsAllThreeEncodings) {
   expectCloud(readPcd(dir.path() / "a.pcd"), p, 1e-5f);  // six decimals in the text
 }
 
+TEST(Pcd, WhatWritePcdWritesReadsBackAsItWas) {
+  testing::TempDir dir;
+  const Points p = smallCloud();
+  OrganizedCloud cloud;
+  cloud.width = p.width;
+  cloud.height = p.height;
+  cloud.points_C = p.xyz;
+  for (std::uint32_t c : p.rgba)
+    cloud.colors.emplace_back((c >> 16) & 0xff, (c >> 8) & 0xff, c & 0xff);
+  cloud.labels = p.label;
+  writePcd(dir.path() / "w.pcd", cloud);
+  expectCloud(readPcd(dir.path() / "w.pcd"), p, 0.0f);
+  // Without colours and labels: the points alone.
+  cloud.colors.clear();
+  cloud.labels.clear();
+  writePcd(dir.path() / "points.pcd", cloud);
+  const OrganizedCloud points = readPcd(dir.path() / "points.pcd");
+  EXPECT_EQ(points.width, p.width);
+  EXPECT_EQ(points.height, p.height);
+  EXPECT_TRUE(points.colors.empty());
+  EXPECT_TRUE(points.labels.empty());
+  EXPECT_EQ(points.validCount(), p.xyz.size() - 1);
+  // A cloud whose parts do not match is refused, and nothing is written.
+  cloud.labels.assign(3, 1);
+  EXPECT_THROW(writePcd(dir.path() / "bad.pcd", cloud), std::invalid_argument);
+  cloud.labels.clear();
+  cloud.width = 5;
+  EXPECT_THROW(writePcd(dir.path() / "bad.pcd", cloud), std::invalid_argument);
+  EXPECT_FALSE(std::filesystem::exists(dir.path() / "bad.pcd"));
+}
+
 TEST(Pcd, BadFilesGetOneClearError) {
   testing::TempDir dir;
   const Points p = smallCloud();

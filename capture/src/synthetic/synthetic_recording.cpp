@@ -5,11 +5,13 @@
 
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/error.h"
@@ -114,10 +116,38 @@ SceneAndPath composeSceneSeenAlongPath(const SceneConfig& config,
   return result;
 }
 
+OrganizedCloud syntheticView(const SyntheticFrame& frame, const Intrinsics& intrinsics) {
+  const cv::Mat& depth = frame.depth_m;
+  OrganizedCloud cloud;
+  cloud.width = depth.cols;
+  cloud.height = depth.rows;
+  const std::size_t n = depth.total();
+  cloud.points_C.assign(n, Eigen::Vector3f::Constant(std::numeric_limits<float>::quiet_NaN()));
+  cloud.colors.assign(n, Rgb8::Zero());
+  cloud.labels.assign(n, 0);
+  for (int v = 0; v < depth.rows; ++v) {
+    for (int u = 0; u < depth.cols; ++u) {
+      const std::size_t i = static_cast<std::size_t>(v) * static_cast<std::size_t>(depth.cols) +
+                            static_cast<std::size_t>(u);
+      const cv::Vec3b c = frame.view.color_rgb.at<cv::Vec3b>(v, u);
+      cloud.colors[i] = Rgb8(c[0], c[1], c[2]);
+      const float z = depth.at<float>(v, u);
+      if (!(z > 0.0f)) continue;
+      cloud.points_C[i] =
+          Eigen::Vector3f(static_cast<float>((u - intrinsics.cx_px) / intrinsics.fx_px) * z,
+                          static_cast<float>((v - intrinsics.cy_px) / intrinsics.fy_px) * z, z);
+      const std::int32_t id = frame.view.label.at<std::int32_t>(v, u);
+      cloud.labels[i] = id > 0 ? 10u * static_cast<std::uint32_t>(id) : 1u;
+    }
+  }
+  return cloud;
+}
+
 std::vector<Visibility> writeSyntheticRecording(const SyntheticScene& scene, const Trajectory& path,
                                                 const Intrinsics& intrinsics,
                                                 const SensorModelConfig& sensor, std::uint64_t seed,
-                                                const fs::path& out_path, ProgressBar* progress) {
+                                                const fs::path& out_path, ProgressBar* progress,
+                                                std::size_t views) {
   sensor.validate();
   intrinsics.validate();
   for (std::size_t i = 0; i < scene.objects.size(); ++i) {
@@ -130,7 +160,15 @@ std::vector<Visibility> writeSyntheticRecording(const SyntheticScene& scene, con
   tmp += ".tmp-" + std::to_string(::getpid());
   std::error_code ec;
   fs::remove_all(tmp, ec);
-  for (const char* sub : {"rgb", "depth", "label"}) {
+  if (views > path.size()) {
+    throw std::invalid_argument("synthetic recording: " + std::to_string(views) +
+                                " views asked of " + std::to_string(path.size()) + " frames");
+  }
+  // The frames written as views: the middles of `views` equal stretches of the path.
+  std::vector<bool> is_view(path.size(), false);
+  for (std::size_t k = 0; k < views; ++k) is_view[(2 * k + 1) * path.size() / (2 * views)] = true;
+  for (const char* sub : {"rgb", "depth", "label", "views"}) {
+    if (std::string_view(sub) == "views" && views == 0) continue;
     fs::create_directories(tmp / sub, ec);
     if (ec) throw OutputError(tmp / sub, "cannot create the folder: " + ec.message());
   }
@@ -165,6 +203,10 @@ std::vector<Visibility> writeSyntheticRecording(const SyntheticScene& scene, con
       tbb::parallel_invoke([&] { writePng(tmp / "rgb" / name, bgr); },
                            [&] { writePng(tmp / "depth" / name, depth16); },
                            [&] { writePng(tmp / "label" / name, label16); });
+      if (is_view[i]) {
+        writePcd(tmp / "views" / (stampName(pose.stamp_s) + ".pcd"),
+                 syntheticView(frame, intrinsics));
+      }
       const std::string stamp = stampName(pose.stamp_s);
       rgb_txt += stamp + " rgb/" + name + "\n";
       depth_txt += stamp + " depth/" + name + "\n";

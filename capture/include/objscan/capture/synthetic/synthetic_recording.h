@@ -9,6 +9,7 @@
 #include "objscan/capture/synthetic/sensor_model.h"
 #include "objscan/capture/synthetic/synthetic_scene.h"
 #include "objscan/core/intrinsics.h"
+#include "objscan/core/organized_cloud.h"
 #include "objscan/core/progress.h"
 #include "objscan/core/trajectory.h"
 #include "objscan/render/offscreen_renderer.h"
@@ -62,12 +63,21 @@ SyntheticFrame renderSyntheticFrame(render::OffscreenRenderer& renderer, const P
 /// end, so an interrupted run leaves no folder that looks complete. `out_dir` must not exist or be
 /// an empty folder (std::invalid_argument otherwise). `seed` drives the sensor noise: frame i is
 /// renderSyntheticFrame(renderer, pose i, i, sensor, seed). `progress` (optional) advances once
-/// per frame. Throws OutputError when writing fails.
+/// per frame. With `views` > 0, that many of the frames, evenly spread along the path, are also
+/// written to views/<timestamp>.pcd as labelled single views (syntheticView), for `objscan eval`
+/// and `discover` (at most one per frame: std::invalid_argument beyond). Throws OutputError when
+/// writing fails.
 std::vector<Visibility> writeSyntheticRecording(const SyntheticScene& scene, const Trajectory& path,
                                                 const Intrinsics& intrinsics,
                                                 const SensorModelConfig& sensor, std::uint64_t seed,
                                                 const std::filesystem::path& out_dir,
-                                                ProgressBar* progress = nullptr);
+                                                ProgressBar* progress = nullptr,
+                                                std::size_t views = 0);
+
+/// A frame as a labelled single view, in the camera frame: the sensor's depth (a pixel without a
+/// reading is NaN), the rendered colour, and labels in mOSD's convention (OrganizedCloud::labels):
+/// 0 no reading, 1 any surface that is no object (table, walls, plant, cables), 10 k object k.
+OrganizedCloud syntheticView(const SyntheticFrame& frame, const Intrinsics& intrinsics);
 
 /// The object names of a scene_gt.json that writeSyntheticRecording wrote (or of a hand-labelled
 /// mesh's objects.json, whose objects give their id as "label"), by object id. Throws
