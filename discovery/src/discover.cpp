@@ -167,7 +167,8 @@ std::string settingsKey(const DiscoveryConfig& c) {
   if (c.supports.enabled) {
     s << " supports " << c.supports.distance_m << ' ' << c.supports.max_angle_deg << ' '
       << c.supports.min_vertices << ' ' << c.supports.max_planes << ' '
-      << c.supports.ransac_iterations << ' ' << c.supports.min_cut_off_size
+      << c.supports.ransac_iterations << ' ' << c.supports.min_cut_off_size << " normal rings "
+      << c.supports.normal_rings << '/' << c.supports.single_view_normal_rings
       << " folds one-vertex"    // the planes' RANSAC draws one vertex with its normal
       << " surface quadratic";  // heights over the support's own surface (SupportPlane::surface)
     if (c.supports.trim_feet) {

@@ -201,15 +201,16 @@ void takeFromCatalog(Catalog& catalog, const fs::path& catalog_path, std::int64_
   log::debug(scene.name + ": candidates from the catalog");
 }
 
-/// The settings for one scene: `config` with the scene's view up, and for a single view no
-/// trimmed feet, no level tops, no standing holder for stacks and its own floating penalty (a
-/// scene is always one or the other, so the settings key still names its candidates; the up is in
-/// its catalog key, catalogKey).
+/// The settings for one scene: `config` with the scene's view up, and for a single view its
+/// supports' averaged normals, no trimmed feet, no level tops, no standing holder for stacks and
+/// its own floating penalty (a scene is always one or the other, so the settings key still names
+/// its candidates; the up is in its catalog key, catalogKey).
 DiscoveryConfig configOf(const DiscoveredScene& scene, const DiscoveryConfig& config) {
   DiscoveryConfig out = config;
   if (scene.view_up) out.objects.context.view_up = scene.view_up;
   if (scene.single_view) {
     out.supports.trim_feet = false;
+    out.supports.normal_rings = out.supports.single_view_normal_rings;
     out.supports.level_tops = false;
     out.objects.context.stacks_need_standing_holder = false;
     out.objects.floating_penalty = out.objects.single_view_floating_penalty;

@@ -36,26 +36,27 @@ struct PlaneHypothesis {
 };
 
 /// RANSAC with one vertex per hypothesis: a vertex and its normal propose a plane, which scores
-/// the vertices of `sample` within `distance` of it whose normals lie within the angle whose
+/// the vertices of `sample` within `distance` of it whose `normals` lie within the angle whose
 /// cosine is `min_cos`. Written here because PCL's plane models (the former fit) draw three
 /// points, which must all fall on one plane: for a shelf board holding a few percent of what is
 /// left, that takes tens of thousands of draws (with 200, PCL's RANSAC missed two boards of a
 /// shelf's three in synthetic scene 2002; with 2000, the support stage took 10 times longer), while
 /// one vertex with its normal takes tens. Deterministic: the draws are seeded with `seed`.
-PlaneHypothesis bestPlane(const TriangleMesh& mesh, const pcl::Indices& sample, float distance,
-                          float min_cos, int hypotheses, unsigned seed) {
+PlaneHypothesis bestPlane(const TriangleMesh& mesh, const std::vector<Eigen::Vector3f>& normals,
+                          const pcl::Indices& sample, float distance, float min_cos, int hypotheses,
+                          unsigned seed) {
   std::minstd_rand draw(seed);
   PlaneHypothesis best;
   for (int h = 0; h < hypotheses; ++h) {
     const auto v = static_cast<std::size_t>(sample[draw() % sample.size()]);
-    const float length = mesh.normals[v].norm();
+    const float length = normals[v].norm();
     if (!(length > 0.0f)) continue;
-    const Eigen::Vector3f normal = mesh.normals[v] / length;
+    const Eigen::Vector3f normal = normals[v] / length;
     const float offset = -normal.dot(mesh.positions[v]);
     std::size_t support = 0;
     for (const pcl::index_t i : sample) {
       const auto u = static_cast<std::size_t>(i);
-      support += onPlane(normal, offset, mesh.positions[u], mesh.normals[u], distance, min_cos);
+      support += onPlane(normal, offset, mesh.positions[u], normals[u], distance, min_cos);
     }
     if (support > best.support) best = {normal, offset, support};
   }
@@ -159,6 +160,10 @@ void SupportConfig::validate() const {
   if (max_planes < 0 || ransac_iterations < 1) {
     throw std::invalid_argument("supports need max_planes >= 0 and at least 1 RANSAC iteration");
   }
+  if (normal_rings < 0 || normal_rings > 100 || single_view_normal_rings < 0 ||
+      single_view_normal_rings > 100) {
+    throw std::invalid_argument("supports' normal rings must lie in 0..100");
+  }
 }
 
 Supports findSupports(const TriangleMesh& mesh, const MeshGraph& graph, const SupportConfig& config,
@@ -182,6 +187,22 @@ Supports findSupports(const TriangleMesh& mesh, const MeshGraph& graph, const Su
   std::vector<std::uint8_t> taken(n, 0);
   std::vector<std::uint8_t> on_plane(n, 0);
   std::vector<std::uint8_t> near_this(n, 0);  // taken by this plane
+  // The normals the planes are judged by: the mesh's, or averaged over config.normal_rings rings
+  // of neighbours (a single view's own per-pixel normals scatter by tens of degrees).
+  std::vector<Eigen::Vector3f> averaged;
+  if (config.normal_rings > 0) averaged = mesh.normals;
+  for (int r = 0; r < config.normal_rings; ++r) {
+    std::vector<Eigen::Vector3f> sum = averaged;
+    for (const MeshEdge& e : graph.edges) {
+      sum[static_cast<std::size_t>(e.a)] += averaged[static_cast<std::size_t>(e.b)];
+      sum[static_cast<std::size_t>(e.b)] += averaged[static_cast<std::size_t>(e.a)];
+    }
+    for (std::size_t v = 0; v < n; ++v) {
+      const float length = sum[v].norm();
+      averaged[v] = length > 0.0f ? Eigen::Vector3f(sum[v] / length) : Eigen::Vector3f::Zero();
+    }
+  }
+  const std::vector<Eigen::Vector3f>& normals = config.normal_rings > 0 ? averaged : mesh.normals;
   for (int k = 0; k < config.max_planes; ++k) {
     std::size_t remaining = 0;
     for (std::size_t v = 0; v < n; ++v) remaining += taken[v] ? 0 : 1;
@@ -192,7 +213,7 @@ Supports findSupports(const TriangleMesh& mesh, const MeshGraph& graph, const Su
     for (std::size_t v = 0, seen = 0; v < n; ++v) {
       if (!taken[v] && seen++ % stride == 0) sample.push_back(static_cast<pcl::index_t>(v));
     }
-    const PlaneHypothesis best = bestPlane(mesh, sample, config.distance_m, min_cos,
+    const PlaneHypothesis best = bestPlane(mesh, normals, sample, config.distance_m, min_cos,
                                            config.ransac_iterations, 1u + static_cast<unsigned>(k));
     if (best.support < 3) break;
     // Refitted by least squares (PCL's) to the sampled vertices near the best hypothesis.
@@ -223,7 +244,7 @@ Supports findSupports(const TriangleMesh& mesh, const MeshGraph& graph, const Su
       taken[v] = 1;
       near_this[v] = 1;
       ++near;
-      if (std::abs(normal.dot(mesh.normals[v])) >= min_cos) on_plane[v] = 1;
+      if (std::abs(normal.dot(normals[v])) >= min_cos) on_plane[v] = 1;
     }
     // The largest plane left is smaller than a support: so is every later one.
     if (near < min_vertices) break;
@@ -257,7 +278,7 @@ Supports findSupports(const TriangleMesh& mesh, const MeshGraph& graph, const Su
           continue;
         }
         taken[v] = 1;
-        on_plane[v] = std::abs(normal.dot(mesh.normals[v])) >= min_cos;
+        on_plane[v] = std::abs(normal.dot(normals[v])) >= min_cos;
       }
       measureRegions();
     }

@@ -461,9 +461,11 @@ TEST(Discover, AScenesViewUpReachesTheContextOfItsCandidates) {
     scenes.push_back(sceneFromMesh("room", mesh));
     scenes.back().view_up = up;
     scenes.back().single_view = single_view;
-    // The same candidates either way: a single view's patches are not kept off creases.
+    // The same candidates either way: a single view's patches are not kept off creases, and its
+    // supports judge the mesh's own normals here (these are exact, not a camera's).
     SceneDiscoveryOptions options;
     options.config.convexity.crease_deg = 0.0f;
+    options.config.supports.single_view_normal_rings = 0;
     const SceneDiscovery run = discoverScenes(std::move(scenes), options);
     std::vector<Hypothesis> out;
     for (const RankedHypothesis& r : run.ranked) {

@@ -27,6 +27,16 @@ struct SupportConfig {
   /// (SupportPlane::surface): about two voxels of KinFu's 3 m / 512 volume, as fused surfaces
   /// are that noisy. Lower, and a table's noise is cut from it.
   float distance_m = 0.01f;
+  /// ... with its normal (SupportConfig::max_angle_deg) averaged with its neighbours' over this
+  /// many rings of mesh edges first. 0 on fused meshes, whose normals come from the TSDF's
+  /// gradient over several voxels; single views (DiscoveredScene's configOf) take
+  /// single_view_normal_rings: a pixel's own normal there scatters by tens of degrees (at 0.6 m a
+  /// table's vertex normals lay a median 35 degrees from its plane in a synthetic view), so a far
+  /// or tilted table broke into pieces too small to be a support and stayed in the scene as a huge
+  /// flat "object". 2 was chosen on synthetic views (docs/discovery.md, "Single views of
+  /// clutter").
+  int normal_rings = 0;
+  int single_view_normal_rings = 2;
   /// ... and with its normal within this angle of the plane's: the rounded fold at an object's
   /// foot then goes with the object, not with the support.
   float max_angle_deg = 25.0f;
