@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <optional>
 #include <stdexcept>
+#include <string>
 
 #include "objscan/capture/synthetic/synthetic_recording.h"
 #include "objscan/capture/synthetic/synthetic_scene.h"
@@ -35,6 +36,10 @@ void runSynth(const SynthOptions& options) {
   const Intrinsics intrinsics = options.intrinsics.empty() ? Intrinsics::xtionDefault()
                                                            : readIntrinsicsJson(options.intrinsics);
 
+  if (options.views > options.frames) {
+    throw std::invalid_argument("--views " + std::to_string(options.views) + " exceeds --frames " +
+                                std::to_string(options.frames));
+  }
   const capture::SceneAndPath composed =
       capture::composeSceneSeenAlongPath(scene_config, path_config, intrinsics);
   const capture::SyntheticScene& scene = composed.scene;

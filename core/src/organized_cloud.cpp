@@ -401,9 +401,13 @@ OrganizedCloud readPcd(const fs::path& path) {
 
 void writePcd(const fs::path& path, const OrganizedCloud& cloud) {
   const std::size_t n = cloud.points_C.size();
-  if (cloud.width < 0 || cloud.height < 0 ||
+  static_assert(std::endian::native == std::endian::little, "PCD binary data is little-endian");
+  if (cloud.width <= 0 || cloud.height <= 0 ||
       n != static_cast<std::size_t>(cloud.width) * static_cast<std::size_t>(cloud.height)) {
     throw std::invalid_argument("writePcd: the cloud's points do not fill its WIDTH x HEIGHT");
+  }
+  if (n > kMaxPoints) {
+    throw std::invalid_argument("writePcd: more points than a PCD file readPcd reads may hold");
   }
   if ((!cloud.colors.empty() && cloud.colors.size() != n) ||
       (!cloud.labels.empty() && cloud.labels.size() != n)) {

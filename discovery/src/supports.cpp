@@ -172,6 +172,9 @@ Supports findSupports(const TriangleMesh& mesh, const MeshGraph& graph, const Su
   if (!mesh.hasNormals()) {
     throw std::invalid_argument("the mesh has no vertex normals, which supports need");
   }
+  if (graph.vertex_count != mesh.positions.size()) {
+    throw std::invalid_argument("findSupports needs the graph of this mesh");
+  }
   const std::size_t n = mesh.positions.size();
   Supports out;
   out.on_support.assign(n, 0);

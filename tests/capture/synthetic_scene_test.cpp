@@ -441,8 +441,8 @@ TEST_F(SyntheticRecording, FailureWhileWritingLeavesNoFolderBehind) {
 
 TEST(SyntheticViews, AreTheFramesAsLabelledPcdsOnTheirPixelGrid) {
   // Two views of six noisy frames: the middles of the path's halves, frames 1 and 4. Each is the
-  // frame's own depth (as the depth PNG stores it, to its 0.2 mm step), colour and label image,
-  // the labels in mOSD's convention, every point on its own pixel's ray.
+  // frame's own depth (as the depth PNG stores it, to its 0.2 mm resolution), colour and label
+  // image, the labels in mOSD's convention, every point on its own pixel's ray.
   testing::TempDir dir;
   SceneConfig config;
   config.objects = 6;

@@ -160,6 +160,7 @@ TEST(Pcd, WhatWritePcdWritesReadsBackAsItWas) {
   cloud.labels.clear();
   cloud.width = 5;
   EXPECT_THROW(writePcd(dir.path() / "bad.pcd", cloud), std::invalid_argument);
+  EXPECT_THROW(writePcd(dir.path() / "bad.pcd", OrganizedCloud{}), std::invalid_argument);
   EXPECT_FALSE(std::filesystem::exists(dir.path() / "bad.pcd"));
 }
 

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <optional>
+#include <random>
 #include <set>
 #include <stdexcept>
 #include <vector>
@@ -488,6 +489,32 @@ TEST(Discover, AScenesViewUpReachesTheContextOfItsCandidates) {
   ASSERT_EQ(single.front().segment.vertices, with.front().segment.vertices);
   EXPECT_EQ(single.front().context.footing, Footing::kNone);
   EXPECT_NEAR(single.front().object_score - with.front().object_score, 0.4, 1e-9);
+}
+
+TEST(Discover, ASingleViewsSupportsJudgeAveragedNormals) {
+  // The table with its two mounds, each vertex normal tilted at random by up to 60 degrees as a
+  // camera's per-pixel normals scatter. As a single view the table is found as a support (its
+  // normals averaged: SupportConfig::single_view_normal_rings); as a fused mesh, whose normals are
+  // taken as they are, it is not.
+  TriangleMesh mesh = table(true);
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+  for (Eigen::Vector3f& n : mesh.normals) {
+    const Eigen::Vector3f axis(unit(rng), unit(rng), 1e-3f);
+    n = Eigen::AngleAxisf(std::acos(1.0f - 0.25f * (1.0f + unit(rng))), axis.normalized()) * n;
+  }
+  const auto supportVertices = [&](bool single_view) {
+    std::vector<SceneInput> scenes;
+    scenes.push_back(sceneFromMesh("table", mesh));
+    scenes.back().single_view = single_view;
+    SceneDiscoveryOptions options;
+    options.config.min_size = 200;
+    return discoverScenes(std::move(scenes), options).scenes.at(0).candidates.support_vertices;
+  };
+  const std::size_t flat = mesh.positions.size() - moundVertices(mesh, -0.15f).size() -
+                           moundVertices(mesh, 0.15f).size();
+  EXPECT_GT(supportVertices(true), flat * 9 / 10);
+  EXPECT_LT(supportVertices(false), flat / 2);
 }
 
 TEST(Discover, TheSettingsKeyChangesWithTheColourCuts) {

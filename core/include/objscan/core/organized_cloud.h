@@ -42,11 +42,12 @@ struct OrganizedCloud {
 /// a header that does not say what it must, x y z missing, or a label field that is not an integer.
 OrganizedCloud readPcd(const std::filesystem::path& path);
 
-/// Writes `cloud` as a binary PCD v0.7 file that readPcd, PCL and CloudCompare read: fields x y z
-/// (float; NaN where a pixel has no reading), then rgb (unsigned, packed 0x00RRGGBB) when the
-/// cloud has colours and label (unsigned) when it has labels; WIDTH x HEIGHT as the cloud's.
-/// Written to a temporary name and renamed. Throws std::invalid_argument when the colours or
-/// labels do not match the points, OutputError when the file cannot be written.
+/// Writes `cloud` as a binary PCD v0.7 file, as readPcd reads them: fields x y z (float; NaN
+/// where a pixel has no reading), then rgb (an unsigned integer, packed 0x00RRGGBB; PCL itself
+/// writes the same bits as a float) when the cloud has colours and label (unsigned) when it has
+/// labels; WIDTH x HEIGHT as the cloud's. Written to a temporary name and renamed. Throws
+/// std::invalid_argument for an empty cloud, one larger than readPcd accepts, or colours or
+/// labels that do not match the points; OutputError when the file cannot be written.
 void writePcd(const std::filesystem::path& path, const OrganizedCloud& cloud);
 
 /// The points of a depth frame (its intrinsics), with its colours.
