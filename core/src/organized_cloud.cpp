@@ -414,15 +414,23 @@ void writePcd(const fs::path& path, const OrganizedCloud& cloud) {
     throw std::invalid_argument("writePcd: one colour and one label per point are needed");
   }
   const bool colours = !cloud.colors.empty(), labels = !cloud.labels.empty();
+  // Every field is 4 bytes, one value: x y z as floats, then rgb and label as unsigned integers.
+  std::string fields = "x y z", sizes = "4 4 4", types = "F F F", counts = "1 1 1";
+  const auto addField = [&](const char* name) {
+    fields += std::string(" ") + name;
+    sizes += " 4";
+    types += " U";
+    counts += " 1";
+  };
+  if (colours) addField("rgb");
+  if (labels) addField("label");
   std::ostringstream header;
-  header << "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS x y z"
-         << (colours ? " rgb" : "") << (labels ? " label" : "") << "\nSIZE 4 4 4"
-         << (colours ? " 4" : "") << (labels ? " 4" : "") << "\nTYPE F F F" << (colours ? " U" : "")
-         << (labels ? " U" : "") << "\nCOUNT 1 1 1" << (colours ? " 1" : "") << (labels ? " 1" : "")
-         << "\nWIDTH " << cloud.width << "\nHEIGHT " << cloud.height
-         << "\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " << n << "\nDATA binary\n";
+  header << "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS " << fields
+         << "\nSIZE " << sizes << "\nTYPE " << types << "\nCOUNT " << counts << "\nWIDTH "
+         << cloud.width << "\nHEIGHT " << cloud.height << "\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " << n
+         << "\nDATA binary\n";
   std::string bytes = header.str();
-  const std::size_t point_size = 12 + (colours ? 4 : 0) + (labels ? 4 : 0);
+  const std::size_t point_size = 4 * (3 + std::size_t{colours} + std::size_t{labels});
   std::size_t at = bytes.size();
   bytes.resize(at + n * point_size);
   const auto put = [&](const void* value) {

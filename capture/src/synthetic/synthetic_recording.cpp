@@ -5,7 +5,6 @@
 
 #include <cmath>
 #include <cstdio>
-#include <limits>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -117,27 +116,19 @@ SceneAndPath composeSceneSeenAlongPath(const SceneConfig& config,
 }
 
 OrganizedCloud syntheticView(const SyntheticFrame& frame, const Intrinsics& intrinsics) {
-  const cv::Mat& depth = frame.depth_m;
-  OrganizedCloud cloud;
-  cloud.width = depth.cols;
-  cloud.height = depth.rows;
-  const std::size_t n = depth.total();
-  cloud.points_C.assign(n, Eigen::Vector3f::Constant(std::numeric_limits<float>::quiet_NaN()));
-  cloud.colors.assign(n, Rgb8::Zero());
-  cloud.labels.assign(n, 0);
-  for (int v = 0; v < depth.rows; ++v) {
-    for (int u = 0; u < depth.cols; ++u) {
-      const std::size_t i = static_cast<std::size_t>(v) * static_cast<std::size_t>(depth.cols) +
+  RgbdFrame rgbd;
+  rgbd.depth_m = frame.depth_m;  // cv::Mat shares the pixels
+  rgbd.color_rgb = frame.view.color_rgb;
+  rgbd.intrinsics = intrinsics;
+  OrganizedCloud cloud = cloudOfFrame(rgbd);
+  cloud.labels.assign(cloud.points_C.size(), 0);
+  for (int v = 0; v < cloud.height; ++v) {
+    const std::int32_t* label = frame.view.label.ptr<std::int32_t>(v);
+    for (int u = 0; u < cloud.width; ++u) {
+      const std::size_t i = static_cast<std::size_t>(v) * static_cast<std::size_t>(cloud.width) +
                             static_cast<std::size_t>(u);
-      const cv::Vec3b c = frame.view.color_rgb.at<cv::Vec3b>(v, u);
-      cloud.colors[i] = Rgb8(c[0], c[1], c[2]);
-      const float z = depth.at<float>(v, u);
-      if (!(z > 0.0f)) continue;
-      cloud.points_C[i] =
-          Eigen::Vector3f(static_cast<float>((u - intrinsics.cx_px) / intrinsics.fx_px) * z,
-                          static_cast<float>((v - intrinsics.cy_px) / intrinsics.fy_px) * z, z);
-      const std::int32_t id = frame.view.label.at<std::int32_t>(v, u);
-      cloud.labels[i] = id > 0 ? 10u * static_cast<std::uint32_t>(id) : 1u;
+      if (!cloud.valid(i)) continue;
+      cloud.labels[i] = label[u] > 0 ? 10u * static_cast<std::uint32_t>(label[u]) : 1u;
     }
   }
   return cloud;
@@ -199,15 +190,12 @@ std::vector<Visibility> writeSyntheticRecording(const SyntheticScene& scene, con
       depth16.setTo(0, depth_m * kDepthFactor > 65535.0);
       view.label.convertTo(label16, CV_16UC1);
       cv::cvtColor(view.color_rgb, bgr, cv::COLOR_RGB2BGR);
-      const std::string name = stampName(pose.stamp_s) + ".png";
+      const std::string stamp = stampName(pose.stamp_s);
+      const std::string name = stamp + ".png";
       tbb::parallel_invoke([&] { writePng(tmp / "rgb" / name, bgr); },
                            [&] { writePng(tmp / "depth" / name, depth16); },
                            [&] { writePng(tmp / "label" / name, label16); });
-      if (is_view[i]) {
-        writePcd(tmp / "views" / (stampName(pose.stamp_s) + ".pcd"),
-                 syntheticView(frame, intrinsics));
-      }
-      const std::string stamp = stampName(pose.stamp_s);
+      if (is_view[i]) writePcd(tmp / "views" / (stamp + ".pcd"), syntheticView(frame, intrinsics));
       rgb_txt += stamp + " rgb/" + name + "\n";
       depth_txt += stamp + " depth/" + name + "\n";
       associations += stamp + " rgb/" + name + " " + stamp + " depth/" + name + "\n";
