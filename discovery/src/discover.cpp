@@ -140,8 +140,8 @@ void DiscoveryConfig::validate() const {
 
 void ObjectSetConfig::validate() const {
   context.validate();
-  for (const double w :
-       {region_share_weight, on_surface_penalty, floating_penalty, single_view_floating_penalty}) {
+  for (const double w : {region_share_weight, single_view_region_share_weight, on_surface_penalty,
+                         floating_penalty, single_view_floating_penalty}) {
     if (!(w >= 0.0) || !std::isfinite(w)) {
       throw std::invalid_argument(
           "the object set's region share weight and footing penalties must be numbers >= 0");

@@ -483,12 +483,14 @@ TEST(Discover, AScenesViewUpReachesTheContextOfItsCandidates) {
   ASSERT_FALSE(with.empty());
   EXPECT_EQ(with.front().context.footing, Footing::kNone);
   // A floating candidate pays 1.0 in a fused mesh, and 0.6 in a single view, which often hides
-  // where a thing meets its support.
+  // where a thing meets its support (its share of its region weighs more there too:
+  // ASingleViewWeighsAFragmentsShareOfItsRegionMore).
   const std::vector<Hypothesis> single = onWall(up, true);
   ASSERT_FALSE(single.empty());
   ASSERT_EQ(single.front().segment.vertices, with.front().segment.vertices);
   EXPECT_EQ(single.front().context.footing, Footing::kNone);
-  EXPECT_NEAR(single.front().object_score - with.front().object_score, 0.4, 1e-9);
+  EXPECT_NEAR(single.front().object_score - with.front().object_score,
+              0.4 + 0.6 * std::log(single.front().context.share_of_region), 1e-9);
 }
 
 TEST(Discover, ASingleViewsSupportsJudgeAveragedNormals) {
@@ -515,6 +517,60 @@ TEST(Discover, ASingleViewsSupportsJudgeAveragedNormals) {
                            moundVertices(mesh, 0.15f).size();
   EXPECT_GT(supportVertices(true), flat * 9 / 10);
   EXPECT_LT(supportVertices(false), flat / 2);
+}
+
+TEST(Discover, ASingleViewWeighsAFragmentsShareOfItsRegionMore) {
+  // A 4 cm mound with a 2.5 cm one grown onto its side, on a table: one region off the table,
+  // whose candidates are the pair and its two parts. As a fused mesh and as a single view, with
+  // settings that give both the same candidates, every hypothesis of the one is a hypothesis of
+  // the other, and its object score differs only by what a single view weighs otherwise:
+  // ln(share of its region) weighs 0.7 instead of 0.1
+  // (ObjectSetConfig::single_view_region_share_weight), and floating costs 0.6 instead of 1.0.
+  const auto mound = [](float x, float y, float radius, float height) {
+    const float t = std::clamp((1.0f - std::hypot(x, y) / radius) / 0.4f, 0.0f, 1.0f);
+    return height * t * t * (3.0f - 2.0f * t);
+  };
+  const TriangleMesh mesh = testing::makeHeightField(201, 0.4f, [&](float x, float y) {
+    return std::max(mound(x + 0.03f, y, 0.06f, 0.04f), mound(x - 0.05f, y, 0.035f, 0.025f));
+  });
+  const auto hypotheses = [&](bool single_view) {
+    std::vector<SceneInput> scenes;
+    scenes.push_back(sceneFromMesh("table", mesh));
+    scenes.back().single_view = single_view;
+    SceneDiscoveryOptions options;
+    options.config.min_size = 50;  // pieces of the mounds too
+    options.config.convexity.crease_deg = 0.0f;
+    options.config.supports.single_view_normal_rings = 0;
+    options.config.supports.trim_feet = false;
+    std::vector<Hypothesis> out;
+    for (RankedHypothesis& r : discoverScenes(std::move(scenes), options).ranked) {
+      out.push_back(std::move(r.hypothesis));
+    }
+    return out;
+  };
+  const std::vector<Hypothesis> fused = hypotheses(false);
+  const std::vector<Hypothesis> view = hypotheses(true);
+  const ObjectSetConfig defaults;
+  std::size_t compared = 0, fragments = 0;
+  for (const Hypothesis& v : view) {
+    const auto same = std::find_if(fused.begin(), fused.end(), [&](const Hypothesis& f) {
+      return f.segment.vertices == v.segment.vertices;
+    });
+    if (same == fused.end()) continue;
+    ASSERT_EQ(same->context.footing, v.context.footing);
+    ASSERT_EQ(same->context.share_of_region, v.context.share_of_region);
+    const double floating = v.context.footing == Footing::kNone ||
+                                    v.context.footing == Footing::kPatch ||
+                                    v.context.footing == Footing::kUnder
+                                ? defaults.floating_penalty - defaults.single_view_floating_penalty
+                                : 0.0;
+    const double share = std::log(std::max(v.context.share_of_region, 0.001));
+    EXPECT_NEAR(v.object_score - same->object_score, (0.7 - 0.1) * share + floating, 1e-9);
+    ++compared;
+    fragments += v.context.share_of_region < 0.5;
+  }
+  EXPECT_EQ(compared, 2u);   // the two parts
+  EXPECT_EQ(fragments, 1u);  // the smaller, a quarter of the region: 0.6 ln(0.26) = -0.81
 }
 
 TEST(Discover, TheSettingsKeyChangesWithTheColourCuts) {

@@ -47,6 +47,13 @@ struct ObjectSetConfig {
   /// than a whole thing standing alone (with weight 0.1: -0.23 for a tenth of its region, -0.46
   /// for a hundredth).
   double region_share_weight = 0.1;
+  /// discoverScenes uses this region share weight for single views (SceneInput::single_view). A
+  /// camera's view breaks its mesh at every depth edge, so a thing in front of another is a region
+  /// of its own, and a small share says more than on a fused mesh, whose surfaces join whatever
+  /// touches them. Chosen on synthetic single views of hard clutter (weights 0.1 to 1.0: 0.7 and
+  /// 1.0 alike); on fused scenes of such clutter 0.5 lost AP (docs/discovery.md, "Single views
+  /// of clutter").
+  double single_view_region_share_weight = 0.7;
   /// Less these, in the score's units, for a candidate that stands on another surface rather
   /// than a support (Footing::kOnSurface), and for one that stands on nothing, is a patch of a
   /// support or reaches up to one (Footing::kNone, kPatch, kUnder).
