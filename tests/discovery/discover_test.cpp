@@ -522,8 +522,8 @@ TEST(Discover, ASingleViewsSupportsJudgeAveragedNormals) {
 TEST(Discover, ASingleViewWeighsAFragmentsShareOfItsRegionMore) {
   // A 4 cm mound with a 2.5 cm one grown onto its side, on a table: one region off the table,
   // whose candidates include its two parts. As a fused mesh and as a single view, with
-  // settings that give both the same candidates, every hypothesis of the one is a hypothesis of
-  // the other, and its object score differs only by what a single view weighs otherwise:
+  // settings that give both the same candidates, a hypothesis the two runs share has an object
+  // score that differs only by what a single view weighs otherwise:
   // ln(share of its region) weighs 0.7 instead of 0.1
   // (ObjectSetConfig::single_view_region_share_weight), and floating costs 0.6 instead of 1.0.
   const auto mound = [](float x, float y, float radius, float height) {
