@@ -23,15 +23,18 @@
 namespace objscan::discovery {
 namespace {
 
+/// A smooth mound `height` tall over the ellipse of radii sx, sy round the origin: flat on top,
+/// its side rising over the outer 40 % of the radii, with a concave foot.
+float mound(float x, float y, float sx, float sy, float height = 0.04f) {
+  const float r = std::sqrt(x * x / (sx * sx) + y * y / (sy * sy));
+  const float t = std::clamp((1.0f - r) / 0.4f, 0.0f, 1.0f);
+  return height * t * t * (3.0f - 2.0f * t);
+}
+
 /// A 1.2 x 1.2 m table top (4 mm grid; larger than 1 m, so the hard filter drops it) with,
 /// optionally, two smooth 4 cm tall mounds: a round one of radius 6 cm and an elongated one of
 /// 6 x 10 cm, each joined to the table by a concave foot.
 TriangleMesh table(bool with_objects) {
-  const auto mound = [](float x, float y, float sx, float sy) {
-    const float r = std::sqrt(x * x / (sx * sx) + y * y / (sy * sy));
-    const float t = std::clamp((1.0f - r) / 0.4f, 0.0f, 1.0f);
-    return 0.04f * t * t * (3.0f - 2.0f * t);
-  };
   return testing::makeHeightField(301, 0.6f, [&](float x, float y) {
     return with_objects ? std::max(mound(x + 0.15f, y, 0.06f, 0.06f),
                                    mound(x - 0.15f, y + 0.05f, 0.06f, 0.10f))
@@ -526,12 +529,8 @@ TEST(Discover, ASingleViewWeighsAFragmentsShareOfItsRegionMore) {
   // score that differs only by what a single view weighs otherwise:
   // ln(share of its region) weighs 0.7 instead of 0.1
   // (ObjectSetConfig::single_view_region_share_weight), and floating costs 0.6 instead of 1.0.
-  const auto mound = [](float x, float y, float radius, float height) {
-    const float t = std::clamp((1.0f - std::hypot(x, y) / radius) / 0.4f, 0.0f, 1.0f);
-    return height * t * t * (3.0f - 2.0f * t);
-  };
-  const TriangleMesh mesh = testing::makeHeightField(201, 0.4f, [&](float x, float y) {
-    return std::max(mound(x + 0.03f, y, 0.06f, 0.04f), mound(x - 0.05f, y, 0.035f, 0.025f));
+  const TriangleMesh mesh = testing::makeHeightField(201, 0.4f, [](float x, float y) {
+    return std::max(mound(x + 0.03f, y, 0.06f, 0.06f), mound(x - 0.05f, y, 0.035f, 0.035f, 0.025f));
   });
   const auto hypotheses = [&](bool single_view) {
     std::vector<SceneInput> scenes;
