@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <limits>
 #include <numeric>
 #include <stdexcept>
@@ -204,6 +205,144 @@ bool broadLevelSurface(const TriangleMesh& mesh, const PointIndex& all_index, co
   const double ring_area = M_PI * (std::pow(radius + kBroadRingM, 2.0) - std::pow(radius, 2.0));
   const double vertex_area = std::sqrt(3.0) / 2.0 * mean_edge_m * mean_edge_m;
   return static_cast<double>(in_ring) >= kBroadCover * ring_area / vertex_area;
+}
+
+/// A candidate resting on a surface makes a storey of its own only when it is at least this
+/// share of its region as it is (before the cut): a box on a box, not a crumb on a leaf. Chosen
+/// on the synthetic tuning views (seeds 3101-3106) and mOSD learn's stacked views (learn17-24):
+/// docs/discovery.md, "Single views of clutter".
+constexpr double kMinStoreyShare = 0.25;
+
+/// How many rings of mesh neighbours a resting candidate's storey reaches past its own vertices
+/// (shareOfStoreys): a segment often leaves a thin strip of its object's side out.
+constexpr int kStoreyRings = 4;
+
+/// Each candidate's share of region (SegmentContext::share_of_region) once the regions off the
+/// supports are cut where a candidate rests on a surface (footing kOnSurface) that belongs to
+/// another candidate that stands (`on_standing`: a box on a box, not a part of an object on
+/// another part of it) and is at least kMinStoreyShare of its region. Its storey is its
+/// vertices and the vertices off the supports within kStoreyRings rings of them that do not face
+/// up (cosine to `plane`'s up under `min_cos`) and lie no lower than half a gap under its lowest:
+/// a strip of its side its segment left out, not the surface it rests on nor the sides of what
+/// holds it. The graph's edges from the storey's foot (its vertices at most `foot_top` over
+/// `plane`) to vertices outside it are left out. What a storey takes in beyond its candidate
+/// (the crease where it meets what holds it, a strip of its side) counts for no candidate and
+/// no region.
+void shareOfStoreys(const TriangleMesh& mesh, const MeshGraph& graph,
+                    const std::vector<std::uint8_t>& off_support, const UpPlane& plane,
+                    float min_cos, const std::vector<Segment>& segments,
+                    const std::vector<float>& foot_top, const std::vector<float>& gaps,
+                    const std::vector<std::uint8_t>& on_standing,
+                    std::vector<SegmentContext>* context) {
+  const auto storey_of = [&](std::size_t i) {
+    return (*context)[i].footing == Footing::kOnSurface && on_standing[i] &&
+           (*context)[i].share_of_region >= kMinStoreyShare;
+  };
+  bool any_storey = false;
+  for (std::size_t i = 0; i < segments.size() && !any_storey; ++i) any_storey = storey_of(i);
+  if (!any_storey) return;
+  const std::size_t n = off_support.size();
+  // The edges at each vertex (indices into graph.edges).
+  std::vector<std::size_t> start(n + 1, 0);
+  for (const MeshEdge& e : graph.edges) {
+    ++start[static_cast<std::size_t>(e.a) + 1];
+    ++start[static_cast<std::size_t>(e.b) + 1];
+  }
+  std::partial_sum(start.begin(), start.end(), start.begin());
+  std::vector<std::uint32_t> at(start.back());
+  {
+    std::vector<std::size_t> next(start.begin(), start.end() - 1);
+    for (std::size_t k = 0; k < graph.edges.size(); ++k) {
+      at[next[static_cast<std::size_t>(graph.edges[k].a)]++] = static_cast<std::uint32_t>(k);
+      at[next[static_cast<std::size_t>(graph.edges[k].b)]++] = static_cast<std::uint32_t>(k);
+    }
+  }
+  const auto other = [&](std::size_t k, std::int32_t v) {
+    return graph.edges[k].a == v ? graph.edges[k].b : graph.edges[k].a;
+  };
+  std::vector<std::uint8_t> cut(graph.edges.size(), 0);
+  // The vertices a storey took in beyond its candidate: where two storeys meet, counted for none.
+  std::vector<std::uint8_t> contact(n, 0);
+  std::vector<std::int32_t> storey, ring, next_ring;
+  bool any = false;
+  for (std::size_t i = 0; i < segments.size(); ++i) {
+    if (!storey_of(i)) continue;
+    const float lowest_kept = foot_top[i] - 1.5f * gaps[i];  // half a gap under its lowest
+    storey = segments[i].vertices;
+    ring = storey;
+    for (int r = 0; r < kStoreyRings && !ring.empty(); ++r) {
+      next_ring.clear();
+      for (std::int32_t v : ring) {
+        for (std::size_t k = start[static_cast<std::size_t>(v)];
+             k < start[static_cast<std::size_t>(v) + 1]; ++k) {
+          const std::int32_t w = other(at[k], v);
+          if (off_support[static_cast<std::size_t>(w)] &&
+              plane.height(mesh.positions[static_cast<std::size_t>(w)]) >= lowest_kept &&
+              plane.up.dot(mesh.normals[static_cast<std::size_t>(w)]) < min_cos) {
+            next_ring.push_back(w);
+          }
+        }
+      }
+      std::sort(next_ring.begin(), next_ring.end());
+      next_ring.erase(std::unique(next_ring.begin(), next_ring.end()), next_ring.end());
+      ring.clear();
+      std::set_difference(next_ring.begin(), next_ring.end(), storey.begin(), storey.end(),
+                          std::back_inserter(ring));
+      const std::size_t old_size = storey.size();
+      storey.insert(storey.end(), ring.begin(), ring.end());
+      std::inplace_merge(storey.begin(), storey.begin() + static_cast<std::ptrdiff_t>(old_size),
+                         storey.end());
+      for (std::int32_t v : ring) contact[static_cast<std::size_t>(v)] = 1;
+    }
+    for (std::int32_t v : storey) {
+      if (plane.height(mesh.positions[static_cast<std::size_t>(v)]) > foot_top[i]) continue;
+      for (std::size_t k = start[static_cast<std::size_t>(v)];
+           k < start[static_cast<std::size_t>(v) + 1]; ++k) {
+        if (!contains(storey, other(at[k], v))) {
+          cut[at[k]] = 1;
+          any = true;
+        }
+      }
+    }
+  }
+  if (!any) return;
+  MeshGraph storeys;
+  storeys.vertex_count = graph.vertex_count;
+  for (std::size_t k = 0; k < graph.edges.size(); ++k) {
+    if (!cut[k]) storeys.edges.push_back(graph.edges[k]);
+  }
+  const std::vector<std::int32_t> region = connectedRegions(storeys, off_support);
+  std::vector<std::size_t> region_size(n, 0);
+  for (std::size_t v = 0; v < n; ++v) {
+    if (off_support[v] && !contact[v]) ++region_size[static_cast<std::size_t>(region[v])];
+  }
+  tbb::parallel_for(
+      tbb::blocked_range<std::size_t>(0, segments.size()),
+      [&](const tbb::blocked_range<std::size_t>& range) {
+        std::vector<std::int32_t> held;
+        for (std::size_t i = range.begin(); i < range.end(); ++i) {
+          held.clear();
+          for (std::int32_t v : segments[i].vertices) {
+            if (off_support[static_cast<std::size_t>(v)] && !contact[static_cast<std::size_t>(v)]) {
+              held.push_back(region[static_cast<std::size_t>(v)]);
+            }
+          }
+          if (held.empty()) continue;
+          std::sort(held.begin(), held.end());
+          std::size_t most = 0;
+          std::int32_t main = held.front();
+          for (std::size_t a = 0; a < held.size();) {
+            std::size_t b = a;
+            while (b < held.size() && held[b] == held[a]) ++b;
+            if (b - a > most) most = b - a, main = held[a];
+            a = b;
+          }
+          const double in = static_cast<double>(most);
+          (*context)[i].share_of_region =
+              in / static_cast<double>(region_size[static_cast<std::size_t>(main)]) *
+              (in / static_cast<double>(held.size()));
+        }
+      });
 }
 
 }  // namespace
@@ -467,8 +606,10 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
   const UpPlane& plane = planes[static_cast<std::size_t>(
       std::max_element(standing.begin(), standing.end()) - standing.begin())];
   const PointIndex all_index(mesh.positions);
-  // The surface under each candidate that stands on no support (sorted vertex indices).
+  // The surface under each candidate that stands on no support (sorted vertex indices), and its
+  // foot where it has such a surface.
   std::vector<std::vector<std::int32_t>> under(segments.size());
+  std::vector<float> foot_top(segments.size(), 0.0f), gaps(segments.size(), 0.0f);
   tbb::parallel_for(
       tbb::blocked_range<std::size_t>(0, segments.size()),
       [&](const tbb::blocked_range<std::size_t>& range) {
@@ -501,15 +642,38 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
           }
           std::sort(u.begin(), u.end());
           u.erase(std::unique(u.begin(), u.end()), u.end());
-          if (u.size() < kMinSurfaceUnder) u.clear();
-          if (!config.stacks_need_standing_holder && !u.empty()) {
-            out[i].footing = Footing::kOnSurface;
+          if (u.size() < kMinSurfaceUnder) {
+            u.clear();
+            continue;
           }
+          foot_top[i] = lowest_height + gap;
+          gaps[i] = gap;
+          if (!config.stacks_need_standing_holder) out[i].footing = Footing::kOnSurface;
         }
       });
-  if (!config.stacks_need_standing_holder) return out;
-  // Twice: what stands on a support holds a stack's second storey, which holds its third.
   const VertexSegments holders(segments, n);
+  // Which of the candidates resting on a surface rest on another candidate that stands.
+  const auto onStanding = [&] {
+    std::vector<std::uint8_t> on(segments.size(), 0);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, segments.size()),
+                      [&](const tbb::blocked_range<std::size_t>& range) {
+                        std::vector<std::uint32_t> hits;
+                        for (std::size_t i = range.begin(); i < range.end(); ++i) {
+                          on[i] =
+                              out[i].footing == Footing::kOnSurface && !under[i].empty() &&
+                              holders.holds(segments, out, under[i], segments[i].vertices, &hits);
+                        }
+                      });
+    return on;
+  };
+  if (!config.stacks_need_standing_holder) {
+    if (config.split_regions_at_stacks) {
+      shareOfStoreys(mesh, graph, off_support, plane, min_cos, segments, foot_top, gaps,
+                     onStanding(), &out);
+    }
+    return out;
+  }
+  // Twice: what stands on a support holds a stack's second storey, which holds its third.
   // Whether a candidate's surface is broad, once it is asked (-1 before): the same each storey.
   std::vector<std::int8_t> broad(segments.size(), -1);
   for (int storey = 0; storey < 2; ++storey) {
@@ -538,6 +702,10 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
       changed = true;
     }
     if (!changed) break;
+  }
+  if (config.split_regions_at_stacks) {
+    shareOfStoreys(mesh, graph, off_support, plane, min_cos, segments, foot_top, gaps, onStanding(),
+                   &out);
   }
   return out;
 }

@@ -202,9 +202,10 @@ void takeFromCatalog(Catalog& catalog, const fs::path& catalog_path, std::int64_
 }
 
 /// The settings for one scene: `config` with the scene's view up, and for a single view its
-/// supports' averaged normals, no trimmed feet, no level tops, no standing holder for stacks and
-/// its own floating penalty and region share weight (a scene is always one or the other, so the
-/// settings key still names its candidates; the up is in its catalog key, catalogKey).
+/// supports' averaged normals, no trimmed feet, no level tops, no standing holder for stacks,
+/// regions cut at stacks, and its own floating penalty and region share weight (a scene is always
+/// one or the other, so the settings key still names its candidates; the up is in its catalog key,
+/// catalogKey).
 DiscoveryConfig configOf(const DiscoveredScene& scene, const DiscoveryConfig& config) {
   DiscoveryConfig out = config;
   if (scene.view_up) out.objects.context.view_up = scene.view_up;
@@ -213,6 +214,7 @@ DiscoveryConfig configOf(const DiscoveredScene& scene, const DiscoveryConfig& co
     out.supports.normal_rings = out.supports.single_view_normal_rings;
     out.supports.level_tops = false;
     out.objects.context.stacks_need_standing_holder = false;
+    out.objects.context.split_regions_at_stacks = true;
     out.objects.floating_penalty = out.objects.single_view_floating_penalty;
     out.objects.region_share_weight = out.objects.single_view_region_share_weight;
     out.convexity.crease_deg = 0.0f;

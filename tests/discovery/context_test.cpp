@@ -149,6 +149,88 @@ TEST(Context, WhatRestsOnAFloatingThingStandsOnNothing) {
   EXPECT_EQ(c[4].footing, Footing::kOnSurface);
 }
 
+/// A square block `height` tall whose top reaches to `half` from the origin along x and y: flat
+/// on top, its sides rising over their outer 1 cm.
+float block(float x, float y, float half, float height) {
+  const float t = std::clamp((half - std::max(std::abs(x), std::abs(y))) / 0.01f, 0.0f, 1.0f);
+  return height * t * t * (3.0f - 2.0f * t);
+}
+
+/// The vertices of `mesh` higher than `low` over the table and at most `high`.
+std::vector<std::int32_t> verticesBetween(const TriangleMesh& mesh, float low, float high) {
+  std::vector<std::int32_t> v;
+  for (std::size_t i = 0; i < mesh.positions.size(); ++i) {
+    const float z = mesh.positions[i].z() - kTable;
+    if (z > low && z <= high) v.push_back(static_cast<std::int32_t>(i));
+  }
+  return v;
+}
+
+// A stack as a single view's mesh shows it, one connected surface: a 13 cm block 6 cm tall on
+// the table and a 9 cm block on it, 6 cm taller. As one region, each block is less than half
+// of it; cut at the stack, each block is all of its storey and the pair spans two. The upper
+// block's segment may leave a strip of its side out: the cut follows the block, not the segment,
+// and the strip counts for no candidate.
+TEST(Context, CutAtAStackEachStoreyIsARegionOfItsOwnAndThePairSpansTwo) {
+  Scene s;
+  s.mesh = makeHeightField(241, 0.3f, [](float x, float y) {
+    return kTable + block(x, y, 0.065f, 0.06f) + block(x, y, 0.045f, 0.06f);
+  });
+  const std::vector<std::int32_t> upper = verticesBetween(s.mesh, 0.062f, 1.0f);
+  std::vector<std::int32_t> strip_out;  // the upper block less a strip of one side
+  for (std::int32_t v : upper) {
+    const Eigen::Vector3f& p = s.mesh.positions[static_cast<std::size_t>(v)];
+    if (!(p.x() > 0.037f && p.z() - kTable < 0.115f)) strip_out.push_back(v);
+  }
+  ASSERT_LT(strip_out.size(), upper.size());
+  s.boxes = {describeSegment(s.mesh, verticesBetween(s.mesh, 1e-4f, 0.062f)),
+             describeSegment(s.mesh, upper), describeSegment(s.mesh, strip_out),
+             describeSegment(s.mesh, verticesBetween(s.mesh, 1e-4f, 1.0f))};
+  const MeshGraph graph = buildMeshGraph(s.mesh);
+  const Supports supports = findSupports(s.mesh, graph, SupportConfig{}, 3000);
+  ASSERT_EQ(supports.planes.size(), 1u);
+  ContextConfig config;
+  config.stacks_need_standing_holder = false;  // as for a single view
+  const std::vector<SegmentContext> joined =
+      segmentContexts(s.mesh, graph, supports, s.boxes, config);
+  config.split_regions_at_stacks = true;
+  const std::vector<SegmentContext> cut = segmentContexts(s.mesh, graph, supports, s.boxes, config);
+  ASSERT_EQ(cut.size(), 4u);
+  for (std::size_t i = 0; i < 4; ++i) EXPECT_EQ(cut[i].footing, joined[i].footing) << i;
+  EXPECT_EQ(cut[0].footing, Footing::kSupport);
+  EXPECT_EQ(cut[1].footing, Footing::kOnSurface);
+  EXPECT_EQ(cut[2].footing, Footing::kOnSurface);
+  EXPECT_EQ(cut[3].footing, Footing::kSupport);
+  // One region: the pair is nearly all of it (the rest is the table's ring around the lower
+  // block's foot, which the support leaves out), each block less than half.
+  EXPECT_GT(joined[3].share_of_region, 0.9);
+  EXPECT_LT(joined[1].share_of_region, 0.5);
+  EXPECT_LT(joined[0].share_of_region, 0.55);
+  // Cut: the upper block is all of its storey, and so is its segment short of a strip; the lower
+  // block nearly all of its own (with that ring of the table); the pair counts against one
+  // storey, by the part of it there.
+  EXPECT_GT(cut[1].share_of_region, 0.99);
+  EXPECT_GT(cut[2].share_of_region, 0.99);
+  EXPECT_GT(cut[0].share_of_region, 0.8);
+  EXPECT_LT(cut[3].share_of_region, 0.5);
+
+  // A 6 cm block on a 12 cm one is about a fifth of the pair's region: under the least share a
+  // storey needs (a quarter), it stays part of the region, as a crumb on a leaf does.
+  Scene small;
+  small.mesh = makeHeightField(241, 0.3f, [](float x, float y) {
+    return kTable + block(x, y, 0.06f, 0.06f) + block(x, y, 0.03f, 0.06f);
+  });
+  small.boxes = {describeSegment(small.mesh, verticesBetween(small.mesh, 0.062f, 1.0f)),
+                 describeSegment(small.mesh, verticesBetween(small.mesh, 1e-4f, 0.062f))};
+  const MeshGraph small_graph = buildMeshGraph(small.mesh);
+  const Supports small_supports = findSupports(small.mesh, small_graph, SupportConfig{}, 3000);
+  const SegmentContext on_top =
+      segmentContexts(small.mesh, small_graph, small_supports, small.boxes, config)[0];
+  EXPECT_EQ(on_top.footing, Footing::kOnSurface);
+  EXPECT_GT(on_top.share_of_region, 0.15);
+  EXPECT_LT(on_top.share_of_region, 0.25);
+}
+
 // A board 10 cm over the table, too small to be a support (1681 vertices; supports need 3000)
 // and no candidate: a box on it stands on its broad level surface. A board hardly larger than
 // the box (7 cm square, a leaf) is no broad surface.

@@ -71,6 +71,12 @@ struct ContextConfig {
   /// it off for single views (SceneInput::single_view), where the lower box of a stack often
   /// shows no foot of its own (hidden behind what stands in front of it).
   bool stacks_need_standing_holder = true;
+  /// Cut the regions that share_of_region is measured against where a candidate rests on a
+  /// surface (Footing::kOnSurface): the mesh's edges from its foot to vertices not its own. Each
+  /// storey of a stack is then a region of its own: a box on a box is all of its region, and the
+  /// box under it too, while the pair as one candidate spans two. discoverScenes turns it on for
+  /// single views (SceneInput::single_view), where the share weighs most.
+  bool split_regions_at_stacks = false;
 
   /// Throws std::invalid_argument naming the first bad field.
   void validate() const;
@@ -84,7 +90,9 @@ struct SegmentContext {
   double height_m = std::numeric_limits<double>::quiet_NaN();
   /// Its share of the part of the scene it belongs to: the connected region of the mesh off the
   /// supports that holds it (an object alone on a table is all of its region: 1; a leaf of a
-  /// plant is a small share of the plant).
+  /// plant is a small share of the plant). One that spans regions (ContextConfig::
+  /// split_regions_at_stacks) is measured against the region that holds most of it, times the
+  /// share of its own vertices that region holds.
   double share_of_region = 0.0;
   /// Mean fusion weight of its vertices over the scene's median vertex weight (1: seen as often
   /// as the scene's typical surface); NaN when the mesh has no weights.
