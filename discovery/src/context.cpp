@@ -227,7 +227,11 @@ constexpr int kStoreyRings = 4;
 /// holds it. The graph's edges from the storey's foot (its vertices at most `foot_top` over
 /// `plane`) to vertices outside it are left out. What a storey takes in beyond its candidate
 /// (the crease where it meets what holds it, a strip of its side) counts for no candidate and
-/// no region.
+/// no region. The cuts of all storeys apply together, so two overlapping candidates that both
+/// make storeys (a segment and the same box short of a strip) cut through each other's edges too.
+/// Once a view has a storey, every candidate's share is measured this way; a candidate left with
+/// no vertex counted keeps its share as it was. Without one, shares stay as they were (the two
+/// agree where nothing is cut).
 void shareOfStoreys(const TriangleMesh& mesh, const MeshGraph& graph,
                     const std::vector<std::uint8_t>& off_support, const UpPlane& plane,
                     float min_cos, const std::vector<Segment>& segments,
@@ -261,7 +265,8 @@ void shareOfStoreys(const TriangleMesh& mesh, const MeshGraph& graph,
     return graph.edges[k].a == v ? graph.edges[k].b : graph.edges[k].a;
   };
   std::vector<std::uint8_t> cut(graph.edges.size(), 0);
-  // The vertices a storey took in beyond its candidate: where two storeys meet, counted for none.
+  // The vertices a storey took in beyond its candidate (the crease where it meets its holder, a
+  // strip of its side): counted for no candidate and no region.
   std::vector<std::uint8_t> contact(n, 0);
   std::vector<std::int32_t> storey, ring, next_ring;
   bool any = false;

@@ -224,11 +224,59 @@ TEST(Context, CutAtAStackEachStoreyIsARegionOfItsOwnAndThePairSpansTwo) {
                  describeSegment(small.mesh, verticesBetween(small.mesh, 1e-4f, 0.062f))};
   const MeshGraph small_graph = buildMeshGraph(small.mesh);
   const Supports small_supports = findSupports(small.mesh, small_graph, SupportConfig{}, 3000);
+  ASSERT_EQ(small_supports.planes.size(), 1u);
   const SegmentContext on_top =
       segmentContexts(small.mesh, small_graph, small_supports, small.boxes, config)[0];
   EXPECT_EQ(on_top.footing, Footing::kOnSurface);
   EXPECT_GT(on_top.share_of_region, 0.15);
   EXPECT_LT(on_top.share_of_region, 0.25);
+}
+
+// What a block rests on must stand for the block to make a storey: a 6 cm block on a 10 cm board
+// floating 15 cm over the table (as a part of an object rests on another part of it whose foot is
+// hidden) is a third of the board's region, enough for a storey, yet stays part of it.
+TEST(Context, ABlockOnAFloatingBoardMakesNoStorey) {
+  Scene s;
+  s.mesh = makeHeightField(
+      161, 0.4f, [](float x, float y) { return kTable + block(x - 0.2f, y, 0.03f, 0.05f); });
+  const std::int32_t first = static_cast<std::int32_t>(s.mesh.positions.size());
+  const TriangleMesh board = makeHeightField(
+      41, 0.05f, [](float x, float y) { return kTable + 0.15f + block(x, y, 0.03f, 0.05f); });
+  s.mesh.positions.insert(s.mesh.positions.end(), board.positions.begin(), board.positions.end());
+  s.mesh.normals.insert(s.mesh.normals.end(), board.normals.begin(), board.normals.end());
+  for (const Eigen::Vector3i& t : board.triangles) {
+    s.mesh.triangles.push_back(t + Eigen::Vector3i::Constant(first));
+  }
+  std::vector<std::int32_t> standing, on_board, board_only, on_top;
+  for (std::int32_t v = 0; v < static_cast<std::int32_t>(s.mesh.positions.size()); ++v) {
+    const float z = s.mesh.positions[static_cast<std::size_t>(v)].z() - kTable;
+    if (v < first) {
+      if (z > 1e-4f) standing.push_back(v);
+      continue;
+    }
+    on_board.push_back(v);
+    (z > 0.152f ? on_top : board_only).push_back(v);
+  }
+  s.boxes = {describeSegment(s.mesh, standing), describeSegment(s.mesh, board_only),
+             describeSegment(s.mesh, on_top), describeSegment(s.mesh, on_board)};
+  const MeshGraph graph = buildMeshGraph(s.mesh);
+  const Supports supports = findSupports(s.mesh, graph, SupportConfig{}, 3000);
+  ASSERT_EQ(supports.planes.size(), 1u);
+  ContextConfig config;
+  config.stacks_need_standing_holder = false;  // as for a single view
+  const std::vector<SegmentContext> joined =
+      segmentContexts(s.mesh, graph, supports, s.boxes, config);
+  config.split_regions_at_stacks = true;
+  const std::vector<SegmentContext> cut = segmentContexts(s.mesh, graph, supports, s.boxes, config);
+  ASSERT_EQ(cut.size(), 4u);
+  EXPECT_EQ(cut[0].footing, Footing::kSupport);
+  EXPECT_EQ(cut[1].footing, Footing::kNone);
+  EXPECT_EQ(cut[2].footing, Footing::kOnSurface);
+  EXPECT_GT(joined[2].share_of_region, 0.25);
+  EXPECT_LT(joined[2].share_of_region, 0.5);
+  for (std::size_t i = 0; i < cut.size(); ++i) {
+    EXPECT_DOUBLE_EQ(cut[i].share_of_region, joined[i].share_of_region) << i;
+  }
 }
 
 // A board 10 cm over the table, too small to be a support (1681 vertices; supports need 3000)

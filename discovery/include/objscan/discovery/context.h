@@ -72,10 +72,12 @@ struct ContextConfig {
   /// shows no foot of its own (hidden behind what stands in front of it).
   bool stacks_need_standing_holder = true;
   /// Cut the regions that share_of_region is measured against where a candidate rests on a
-  /// surface (Footing::kOnSurface): the mesh's edges from its foot to vertices not its own. Each
-  /// storey of a stack is then a region of its own: a box on a box is all of its region, and the
-  /// box under it too, while the pair as one candidate spans two. discoverScenes turns it on for
-  /// single views (SceneInput::single_view), where the share weighs most.
+  /// surface (Footing::kOnSurface) of another candidate that stands, and is at least a quarter of
+  /// its region: the mesh's edges from the foot of its storey (it and the strip of its side its
+  /// segment left out) to anything outside the storey. Each storey of a stack is then a region of
+  /// its own: a box on a box is all of its region, and the box under it nearly all of its own,
+  /// while the pair as one candidate spans two. discoverScenes turns it on for single views
+  /// (SceneInput::single_view), where the share weighs most.
   bool split_regions_at_stacks = false;
 
   /// Throws std::invalid_argument naming the first bad field.
