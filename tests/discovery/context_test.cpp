@@ -166,6 +166,22 @@ std::vector<std::int32_t> verticesBetween(const TriangleMesh& mesh, float low, f
   return v;
 }
 
+/// The contexts of a scene with one support as a single view has them (no standing holder for
+/// stacks): with the regions as they are, and cut at stacks.
+std::pair<std::vector<SegmentContext>, std::vector<SegmentContext>> singleViewContexts(
+    const Scene& s) {
+  const MeshGraph graph = buildMeshGraph(s.mesh);
+  const Supports supports = findSupports(s.mesh, graph, SupportConfig{}, 3000);
+  EXPECT_EQ(supports.planes.size(), 1u);
+  ContextConfig config;
+  config.stacks_need_standing_holder = false;
+  std::pair<std::vector<SegmentContext>, std::vector<SegmentContext>> out;
+  out.first = segmentContexts(s.mesh, graph, supports, s.boxes, config);
+  config.split_regions_at_stacks = true;
+  out.second = segmentContexts(s.mesh, graph, supports, s.boxes, config);
+  return out;
+}
+
 // A stack as a single view's mesh shows it, one connected surface: a 13 cm block 6 cm tall on
 // the table and a 9 cm block on it, 6 cm taller. As one region, each block is less than half
 // of it; cut at the stack, each block is all of its storey and the pair spans two. The upper
@@ -186,15 +202,7 @@ TEST(Context, CutAtAStackEachStoreyIsARegionOfItsOwnAndThePairSpansTwo) {
   s.boxes = {describeSegment(s.mesh, verticesBetween(s.mesh, 1e-4f, 0.062f)),
              describeSegment(s.mesh, upper), describeSegment(s.mesh, strip_out),
              describeSegment(s.mesh, verticesBetween(s.mesh, 1e-4f, 1.0f))};
-  const MeshGraph graph = buildMeshGraph(s.mesh);
-  const Supports supports = findSupports(s.mesh, graph, SupportConfig{}, 3000);
-  ASSERT_EQ(supports.planes.size(), 1u);
-  ContextConfig config;
-  config.stacks_need_standing_holder = false;  // as for a single view
-  const std::vector<SegmentContext> joined =
-      segmentContexts(s.mesh, graph, supports, s.boxes, config);
-  config.split_regions_at_stacks = true;
-  const std::vector<SegmentContext> cut = segmentContexts(s.mesh, graph, supports, s.boxes, config);
+  const auto [joined, cut] = singleViewContexts(s);
   ASSERT_EQ(cut.size(), 4u);
   for (std::size_t i = 0; i < 4; ++i) EXPECT_EQ(cut[i].footing, joined[i].footing) << i;
   EXPECT_EQ(cut[0].footing, Footing::kSupport);
@@ -222,11 +230,7 @@ TEST(Context, CutAtAStackEachStoreyIsARegionOfItsOwnAndThePairSpansTwo) {
   });
   small.boxes = {describeSegment(small.mesh, verticesBetween(small.mesh, 0.062f, 1.0f)),
                  describeSegment(small.mesh, verticesBetween(small.mesh, 1e-4f, 0.062f))};
-  const MeshGraph small_graph = buildMeshGraph(small.mesh);
-  const Supports small_supports = findSupports(small.mesh, small_graph, SupportConfig{}, 3000);
-  ASSERT_EQ(small_supports.planes.size(), 1u);
-  const SegmentContext on_top =
-      segmentContexts(small.mesh, small_graph, small_supports, small.boxes, config)[0];
+  const SegmentContext on_top = singleViewContexts(small).second[0];
   EXPECT_EQ(on_top.footing, Footing::kOnSurface);
   EXPECT_GT(on_top.share_of_region, 0.15);
   EXPECT_LT(on_top.share_of_region, 0.25);
@@ -259,15 +263,7 @@ TEST(Context, ABlockOnAFloatingBoardMakesNoStorey) {
   }
   s.boxes = {describeSegment(s.mesh, standing), describeSegment(s.mesh, board_only),
              describeSegment(s.mesh, on_top), describeSegment(s.mesh, on_board)};
-  const MeshGraph graph = buildMeshGraph(s.mesh);
-  const Supports supports = findSupports(s.mesh, graph, SupportConfig{}, 3000);
-  ASSERT_EQ(supports.planes.size(), 1u);
-  ContextConfig config;
-  config.stacks_need_standing_holder = false;  // as for a single view
-  const std::vector<SegmentContext> joined =
-      segmentContexts(s.mesh, graph, supports, s.boxes, config);
-  config.split_regions_at_stacks = true;
-  const std::vector<SegmentContext> cut = segmentContexts(s.mesh, graph, supports, s.boxes, config);
+  const auto [joined, cut] = singleViewContexts(s);
   ASSERT_EQ(cut.size(), 4u);
   EXPECT_EQ(cut[0].footing, Footing::kSupport);
   EXPECT_EQ(cut[1].footing, Footing::kNone);
