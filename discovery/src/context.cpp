@@ -11,8 +11,11 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include "objscan/discovery/shape_measures.h"
+
 #include "connected_regions.h"
 #include "ground.h"
+#include "objscan/discovery/shape_measures.h"
 #include "plane_tests.h"
 #include "point_index.h"
 
@@ -246,23 +249,12 @@ void shareOfStoreys(const TriangleMesh& mesh, const MeshGraph& graph,
   for (std::size_t i = 0; i < segments.size() && !any_storey; ++i) any_storey = storey_of(i);
   if (!any_storey) return;
   const std::size_t n = off_support.size();
-  // The edges at each vertex (indices into graph.edges).
-  std::vector<std::size_t> start(n + 1, 0);
-  for (const MeshEdge& e : graph.edges) {
-    ++start[static_cast<std::size_t>(e.a) + 1];
-    ++start[static_cast<std::size_t>(e.b) + 1];
-  }
-  std::partial_sum(start.begin(), start.end(), start.begin());
-  std::vector<std::uint32_t> at(start.back());
-  {
-    std::vector<std::size_t> next(start.begin(), start.end() - 1);
-    for (std::size_t k = 0; k < graph.edges.size(); ++k) {
-      at[next[static_cast<std::size_t>(graph.edges[k].a)]++] = static_cast<std::uint32_t>(k);
-      at[next[static_cast<std::size_t>(graph.edges[k].b)]++] = static_cast<std::uint32_t>(k);
-    }
-  }
-  const auto other = [&](std::size_t k, std::int32_t v) {
-    return graph.edges[k].a == v ? graph.edges[k].b : graph.edges[k].a;
+  const VertexEdges by_vertex = vertexEdges(graph);
+  const std::vector<std::size_t>& start = by_vertex.offsets;
+  const std::vector<std::int32_t>& at = by_vertex.edges;
+  const auto other = [&](std::int32_t k, std::int32_t v) {
+    const MeshEdge& e = graph.edges[static_cast<std::size_t>(k)];
+    return e.a == v ? e.b : e.a;
   };
   std::vector<std::uint8_t> cut(graph.edges.size(), 0);
   // The vertices a storey took in beyond its candidate (the crease where it meets its holder, a
@@ -304,7 +296,7 @@ void shareOfStoreys(const TriangleMesh& mesh, const MeshGraph& graph,
       for (std::size_t k = start[static_cast<std::size_t>(v)];
            k < start[static_cast<std::size_t>(v) + 1]; ++k) {
         if (!contains(storey, other(at[k], v))) {
-          cut[at[k]] = 1;
+          cut[static_cast<std::size_t>(at[k])] = 1;
           any = true;
         }
       }
