@@ -3,6 +3,8 @@
 #include <memory>
 #include <string>
 
+#include <CLI/CLI.hpp>
+
 #include "commands.h"
 #include "discover_command.h"
 #include "eval_command.h"

@@ -3,6 +3,8 @@
 #include <memory>
 #include <string>
 
+#include <CLI/CLI.hpp>
+
 #include "commands.h"
 #include "fuse_command.h"
 #include "info_command.h"

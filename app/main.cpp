@@ -1,7 +1,6 @@
 // objscan: the command line. Parses flags, calls the library, prints, chooses the exit code
 // (README, "Exit codes"). Nothing else lives here.
 
-#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <csignal>
 #include <cstdio>
@@ -10,6 +9,8 @@
 #include <stdexcept>
 #include <string>
 #include <vector>
+
+#include <CLI/CLI.hpp>
 
 #include "commands.h"
 #include "exit_codes.h"

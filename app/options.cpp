@@ -12,6 +12,8 @@
 #include <string>
 #include <system_error>
 
+#include <CLI/CLI.hpp>
+
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/error.h"
 #include "objscan/core/intrinsics.h"

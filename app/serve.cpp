@@ -6,6 +6,8 @@
 #include <thread>
 #include <utility>
 
+#include <CLI/CLI.hpp>
+
 #include "objscan/core/clock.h"
 #include "objscan/core/log.h"
 #include "options.h"

@@ -4,11 +4,15 @@
 #include <optional>
 #include <string>
 
-#include <CLI/CLI.hpp>
-
 #include "live_server.h"
 #include "live_session.h"
 #include "objscan/pipeline/fuse.h"
+
+// CLI11 is included by the sources that build the command line: it takes seconds to compile
+// at -O3, and most sources that include this header do not use it.
+namespace CLI {
+class App;
+}  // namespace CLI
 
 /// `--serve [ADDR:]PORT` for fuse and scan: the live session and its server, started before the
 /// source is opened and kept after the run until Ctrl-C (or --serve-wait), so that the page can

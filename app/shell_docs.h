@@ -2,7 +2,11 @@
 
 #include <string>
 
-#include <CLI/CLI.hpp>
+// CLI11 is included by the sources that build the command line: it takes seconds to compile
+// at -O3, and most sources that include this header do not use it.
+namespace CLI {
+class App;
+}  // namespace CLI
 
 /// The bash completion script and the man page, both generated from the command line's own
 /// definition (names, options, help text, examples), so they never disagree with --help.

@@ -5,6 +5,8 @@
 #include <memory>
 #include <stdexcept>
 
+#include <CLI/CLI.hpp>
+
 #include "exit_codes.h"
 #include "objscan/core/error.h"
 #include "objscan/core/log.h"

@@ -1,11 +1,12 @@
-// Faults on objscan's outputs (the fault audit): `fuse`, `discover`, `scan` and `record` killed with
-// SIGKILL at random moments, run under a tiny file-size limit and on a full disk, and run twice at
-// once on one results folder or one catalog. After each, every output file present must be
+// Faults on objscan's outputs (the fault audit): `fuse`, `discover`, `scan` and `record` killed
+// with SIGKILL at random moments, run under a tiny file-size limit and on a full disk, and run
+// twice at once on one results folder or one catalog. After each, every output file present must be
 // complete and valid (read by objscan's own readers, the catalog through SQLite's integrity check,
 // the recording replayed), nothing half-written may be under a final name, the files of a results
 // folder must belong together, and a rerun must succeed.
 //
-// OBJSCAN_FAULT_KILLS sets the number of kills per command (default 50).
+// OBJSCAN_FAULT_KILLS sets the number of kills per command (default 25: in CI the test took 149 s
+// of test time at 50; the fault audit in docs/fuzzing.md was made at 50).
 
 #include <gtest/gtest.h>
 #include <sqlite3.h>
@@ -48,7 +49,7 @@ using testing::TempDir;
 
 int killsPerCommand() {
   const char* n = std::getenv("OBJSCAN_FAULT_KILLS");
-  return n != nullptr && std::atoi(n) > 0 ? std::atoi(n) : 50;
+  return n != nullptr && std::atoi(n) > 0 ? std::atoi(n) : 25;
 }
 
 /// A name objscan gives a file or folder while it writes it: never a final name.
