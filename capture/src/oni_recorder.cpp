@@ -254,8 +254,9 @@ void OniRecorder::close() noexcept {
   recorder_.destroy();  // detaches the streams: seek tables, frame counts and the end record
 }
 
-RecordSummary OniRecorder::publish(const RecordingFacts& facts, const std::string& stop_reason,
-                                   bool failed) {
+RecordSummary OniRecorder::publish(
+    const RecordingFacts& facts, const std::string& stop_reason, bool failed,
+    const std::optional<std::pair<std::size_t, std::string>>& complete_at) {
   close();
   RecordSummary summary;
   summary.stop_reason = stop_reason;
@@ -280,6 +281,11 @@ RecordSummary OniRecorder::publish(const RecordingFacts& facts, const std::strin
   for (const OniStreamSummary& stream : written.streams) {
     if (stream.type == "depth") summary.depth_frames = stream.data_records;
     if (stream.type == "color") summary.color_frames = stream.data_records;
+  }
+  if (failed && complete_at && summary.depth_frames >= complete_at->first &&
+      (color_ == nullptr || summary.color_frames >= complete_at->first)) {
+    summary.failed = false;
+    summary.stop_reason = complete_at->second;
   }
   // Frames the sensor numbered while recording but that are not in the file.
   summary.dropped =

@@ -14,6 +14,7 @@
 #include <mutex>
 #include <optional>
 #include <string>
+#include <utility>
 
 #include "objscan/capture/openni.h"
 #include "objscan/core/intrinsics.h"
@@ -98,7 +99,13 @@ class OniRecorder {
   /// After close(): trims the padding OpenNI2 leaves, reads the file back, renames it to `out` and
   /// writes X.oni.json (and X.oni.groundtruth.txt). Throws std::runtime_error when the file holds
   /// no frame (it is removed), OutputError when it cannot be put in place.
-  RecordSummary publish(const RecordingFacts& facts, const std::string& stop_reason, bool failed);
+  /// `complete_at` (a count of frames and a reason): a source with a known end (a virtual
+  /// sensor's folder) that stalled. A file holding that many frames of each stream is the end of
+  /// the source, said with that reason, not a fault: OpenNI2 coalesces new-frame callbacks, so
+  /// when the first ones come together on a busy machine the counts fall short of the end.
+  RecordSummary publish(
+      const RecordingFacts& facts, const std::string& stop_reason, bool failed,
+      const std::optional<std::pair<std::size_t, std::string>>& complete_at = std::nullopt);
 
   const std::filesystem::path& out() const { return options_.out; }
 

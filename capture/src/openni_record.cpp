@@ -5,9 +5,11 @@
 
 #include <atomic>
 #include <chrono>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <utility>
 
 #include "objscan/capture/openni.h"
 #include "objscan/core/error.h"
@@ -80,6 +82,7 @@ RecordSummary recordSession(const RecordOptions& options, const std::atomic<bool
   }
   std::string stop_reason;
   bool failed = false;
+  bool stalled = false;  // the sensor stopped delivering frames while still attached
   for (;;) {
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
     const OniRecorder::Progress s = recorder.progress();
@@ -101,7 +104,8 @@ RecordSummary recordSession(const RecordOptions& options, const std::atomic<bool
     }
     const auto last = s.depth_frames > 0 ? s.last_frame : start;
     if (wasDisconnected(uri) || now - last > kStallTimeout) {
-      stop_reason = sensorLostReason(s.depth_frames, wasDisconnected(uri));
+      stalled = !wasDisconnected(uri);
+      stop_reason = sensorLostReason(s.depth_frames, !stalled);
       failed = true;
       break;
     }
@@ -115,7 +119,11 @@ RecordSummary recordSession(const RecordOptions& options, const std::atomic<bool
   depth.destroy();
   if (has_color) color.destroy();
   device.close();
-  return recorder.publish(facts, stop_reason, failed);
+  // A virtual sensor whose every frame is in the file ended; it was not lost (publish says why
+  // the counts can fall short).
+  std::optional<std::pair<std::size_t, std::string>> complete_at;
+  if (stalled && !stop_at_end.empty()) complete_at.emplace(*limit, stop_at_end);
+  return recorder.publish(facts, stop_reason, failed, complete_at);
 }
 
 }  // namespace objscan::capture
