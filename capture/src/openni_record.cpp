@@ -54,7 +54,7 @@ RecordSummary recordSession(const RecordOptions& options, const std::atomic<bool
   facts.ground_truth = options.ground_truth;
   std::optional<std::size_t> limit = options.max_frames;
   std::string stop_at_end;
-  if (live.frame_count && (!limit || *limit >= *live.frame_count)) {
+  if (live.frame_count && *live.frame_count > 0 && (!limit || *limit >= *live.frame_count)) {
     limit = live.frame_count;
     stop_at_end = "end of the virtual sensor's source";
   }

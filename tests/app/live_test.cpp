@@ -310,7 +310,7 @@ TEST(LiveServer, FusionEndingDuringADiscoveryRoundIsClean) {
   for (int run = 0; run < 3; ++run) {
     const fs::path out = dir / std::string("f").append(std::to_string(run));
     const testing::ProcessResult r =
-        testing::objscan({"fuse", "synth:3", "--end", "25", "--out", out.string(), "--serve", "0",
+        testing::objscan({"fuse", "synth:3", "--end", "40", "--out", out.string(), "--serve", "0",
                           "--serve-wait", "0", "--live-discovery-every", "0.1"});
     EXPECT_EQ(r.exit_code, 0) << r.err;
     EXPECT_TRUE(fs::is_regular_file(out / "mesh.ply"));
