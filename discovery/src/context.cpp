@@ -11,8 +11,6 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
-#include "objscan/discovery/shape_measures.h"
-
 #include "connected_regions.h"
 #include "ground.h"
 #include "objscan/discovery/shape_measures.h"
@@ -663,17 +661,12 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
                       });
     return on;
   };
-  if (!config.stacks_need_standing_holder) {
-    if (config.split_regions_at_stacks) {
-      shareOfStoreys(mesh, graph, off_support, plane, min_cos, segments, foot_top, gaps,
-                     onStanding(), &out);
-    }
-    return out;
-  }
-  // Twice: what stands on a support holds a stack's second storey, which holds its third.
-  // Whether a candidate's surface is broad, once it is asked (-1 before): the same each storey.
+  // Where stacks need a standing holder (fused meshes; a single view's candidates with a surface
+  // under them rest on it already), twice: what stands on a support holds a stack's second
+  // storey, which holds its third. Whether a candidate's surface is broad, once it is asked (-1
+  // before): the same each storey.
   std::vector<std::int8_t> broad(segments.size(), -1);
-  for (int storey = 0; storey < 2; ++storey) {
+  for (int storey = 0; config.stacks_need_standing_holder && storey < 2; ++storey) {
     std::vector<std::uint8_t> held(segments.size(), 0);
     tbb::parallel_for(
         tbb::blocked_range<std::size_t>(0, segments.size()),
