@@ -234,13 +234,28 @@ TEST_F(OpenNI, ReplaySelectionKeepsRecordingIndices) {
   }
 }
 
-TEST_F(OpenNI, LiveVirtualSensorDeliversEveryFrameInOrder) {
-  // 20 Hz: a reader slower than the sensor (a loaded machine, the sanitizers) would miss frames,
-  // as OpenNI2 keeps only the newest for it.
+TEST_F(OpenNI, LiveVirtualSensorDeliversTheFoldersFramesInOrder) {
+  // A live sensor does not wait for its reader: OpenNI2 keeps only the newest frame for one that
+  // falls behind. At 20 Hz a reader on a quiet machine misses none, but under the sanitizers,
+  // beside another test, a stall of over 50 ms cost one frame of 24 (a CI run). So every frame
+  // delivered must be the folder's frame of the same time stamp, pixel for pixel and in order,
+  // and at most a quarter may be missed; the last is never missed (no newer frame replaces it).
   auto live = openSensor("virtual:" + folder().string() + "?fps=20");
   EXPECT_TRUE(live->info().live);
   EXPECT_EQ(live->info().frame_count, std::optional<std::size_t>(kFolderFrames));
-  expectSameFrames(folderFrames(), readAll(*live), kFolderFrames);
+  const std::vector<RgbdFrame> expected = folderFrames();
+  const std::vector<RgbdFrame> got = readAll(*live);
+  ASSERT_GE(4 * got.size(), 3 * kFolderFrames);
+  ASSERT_LE(got.size(), kFolderFrames);
+  std::vector<RgbdFrame> matched;
+  std::size_t j = 0;
+  for (const RgbdFrame& frame : got) {
+    while (j < expected.size() && expected[j].stamp_s < frame.stamp_s - 1e-6) ++j;
+    ASSERT_LT(j, expected.size()) << "a frame stamped " << frame.stamp_s << " is not the folder's";
+    matched.push_back(expected[j++]);
+  }
+  expectSameFrames(matched, got, got.size());
+  EXPECT_NEAR(got.back().stamp_s, expected.back().stamp_s, 1e-6);
   // Opened without a recording, it records nothing.
   EXPECT_EQ(dynamic_cast<RecordingFrameSource*>(live.get()), nullptr);
   EXPECT_FALSE(finishRecording(*live, "done").has_value());
