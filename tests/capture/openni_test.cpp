@@ -237,7 +237,7 @@ TEST_F(OpenNI, ReplaySelectionKeepsRecordingIndices) {
 TEST_F(OpenNI, LiveVirtualSensorDeliversTheFoldersFramesInOrder) {
   // A live sensor does not wait for its reader: OpenNI2 keeps only the newest frame for one that
   // falls behind. At 20 Hz a reader on a quiet machine misses none, but under the sanitizers,
-  // beside another test, a stall of over 50 ms cost one frame of 24 (a CI run). So every frame
+  // beside another test, a stall of over 50 ms once cost one frame of 24. So every frame
   // delivered must be the folder's frame of the same time stamp, pixel for pixel and in order,
   // and at most a quarter may be missed; the last is never missed (no newer frame replaces it).
   auto live = openSensor("virtual:" + folder().string() + "?fps=20");

@@ -48,8 +48,8 @@ struct SupportConfig {
   /// an object that the cuts leave on its own stays a segment, however small. It is a candidate
   /// from this many vertices at the paper's density (scaled as min_size is): about 2 cm^2 of
   /// surface, what a camera sees of a 1.6 cm marble or dice (chosen on the hard synthetic tuning
-  /// views, docs/discovery.md "Small objects"; 20, the former value, about 7 cm^2, left out
-  /// objects under 3 cm, and 100 before it missed occluded parts of 130 to 600 vertices on
+  /// views, docs/discovery.md "Small objects' floor"; 20, the former value, about 7 cm^2, left
+  /// out objects under 3 cm, and 100 before it missed occluded parts of 130 to 600 vertices on
   /// mosd_learn). Without supports, m_size is the only floor.
   std::size_t min_cut_off_size = 6;
   /// Planes looked for, largest first: a room's floor and walls, a table, and a shelf's boards
