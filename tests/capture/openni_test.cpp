@@ -301,7 +301,11 @@ TEST_F(OpenNI, LiveRecordingHoldsEveryFrameNextReturnedBitForBit) {
     EXPECT_EQ(finishRecording(*live, "again")->stop_reason, summary.stop_reason);
     EXPECT_EQ(live->next().status, FrameStatus::kEndOfStream);
   }
-  ASSERT_EQ(returned.size(), kFolderFrames);
+  // The reader may miss a frame that a stall let a newer one replace (see
+  // LiveVirtualSensorDeliversTheFoldersFramesInOrder); the recorder, fed by the sensor itself,
+  // misses none.
+  ASSERT_GE(4 * returned.size(), 3 * kFolderFrames);
+  ASSERT_LE(returned.size(), kFolderFrames);
   EXPECT_EQ(summary.depth_frames, kFolderFrames);
   EXPECT_EQ(summary.color_frames, kFolderFrames);
   EXPECT_EQ(summary.dropped, 0u);
@@ -320,7 +324,7 @@ TEST_F(OpenNI, LiveRecordingHoldsEveryFrameNextReturnedBitForBit) {
   ASSERT_TRUE(replay->info().ground_truth.has_value());
   EXPECT_EQ(replay->info().ground_truth->size(), kFolderFrames);
   const std::vector<RgbdFrame> replayed = readAll(*replay);
-  ASSERT_EQ(replayed.size(), returned.size());
+  ASSERT_EQ(replayed.size(), kFolderFrames);
   expectRecordedAsReturned(returned, replayed);
   expectSameFrames(folderFrames(), replayed, kFolderFrames);
 }
