@@ -11,10 +11,10 @@
 
 #include <tbb/task_arena.h>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "objscan/core/clock.h"
+#include "objscan/core/image_codec.h"
 #include "objscan/core/log.h"
 #include "objscan/core/palette.h"
 #include "objscan/fusion/marching_cubes.h"
@@ -82,10 +82,9 @@ Json hypothesesJson(const std::vector<LiveHypothesis>& list) {
   return out;
 }
 
-std::string encodeJpeg(const cv::Mat& bgr) {
-  std::vector<unsigned char> bytes;
-  if (!cv::imencode(".jpg", bgr, bytes, {cv::IMWRITE_JPEG_QUALITY, kJpegQuality})) return {};
-  return std::string(bytes.begin(), bytes.end());
+/// The page's JPEG of `bgr`; empty (nothing to show yet) for an empty image.
+std::string pageJpeg(const cv::Mat& bgr) {
+  return bgr.empty() ? std::string() : encodeJpeg(bgr, kJpegQuality);
 }
 
 /// Makes the calling thread run only when a core would otherwise idle (Linux's SCHED_IDLE:
@@ -494,7 +493,7 @@ std::string LiveSession::modelJpeg() {
                          cv::saturate_cast<std::uint8_t>(r * shade));
     }
   }
-  model_jpeg_ = encodeJpeg(bgr);
+  model_jpeg_ = pageJpeg(bgr);
   model_key_ = key;
   return model_jpeg_;
 }
@@ -512,7 +511,7 @@ std::string LiveSession::colorJpeg() {
   cv::resize(s->color_rgb, half, cv::Size(s->color_rgb.cols / 2, s->color_rgb.rows / 2), 0, 0,
              cv::INTER_AREA);
   cv::cvtColor(half, bgr, cv::COLOR_RGB2BGR);
-  color_jpeg_ = encodeJpeg(bgr);
+  color_jpeg_ = pageJpeg(bgr);
   color_seq_ = s->seq;
   return color_jpeg_;
 }

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <new>
 #include <stdexcept>
@@ -11,6 +12,9 @@
 #include <vector>
 
 #include <CLI/CLI.hpp>
+#ifdef OBJSCAN_MIMALLOC
+#include <mimalloc.h>
+#endif
 
 #include "commands.h"
 #include "exit_codes.h"
@@ -128,6 +132,13 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
+#ifdef OBJSCAN_MIMALLOC
+  // Memory from here on comes in 2 MB pages (transparent huge pages, where the kernel allows them
+  // on request): a page fault then maps 512 times as much. MIMALLOC_LARGE_OS_PAGES=0 overrides.
+  if (std::getenv("MIMALLOC_LARGE_OS_PAGES") == nullptr) {
+    mi_option_set_enabled(mi_option_large_os_pages, true);
+  }
+#endif
   // Past a file-size limit (ulimit -f) a write then fails with EFBIG, which every writer reports
   // and cleans up after as it does a full disk, instead of SIGXFSZ killing the process mid-file.
   std::signal(SIGXFSZ, SIG_IGN);

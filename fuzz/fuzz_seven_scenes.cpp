@@ -3,7 +3,6 @@
 // The input holds four parts, each ended by a line "=====": camera-intrinsics.txt, frame 0's
 // pose, frame 1's pose, frame 0's depth PNG. An empty part is a file that is not there (for the
 // PNG: a valid 4x3 16-bit image); frame 1's depth image is always that valid one.
-#include <opencv2/imgcodecs.hpp>
 
 #include <string>
 #include <string_view>
@@ -11,15 +10,14 @@
 
 #include "fuzz_input.h"
 #include "objscan/capture/seven_scenes_folder.h"
+#include "objscan/core/image_codec.h"
 
 namespace fs = std::filesystem;
 
 namespace {
 
 std::string smallDepthPng() {
-  std::vector<std::uint8_t> png;
-  cv::imencode(".png", cv::Mat(3, 4, CV_16UC1, cv::Scalar(1000)), png);
-  return {png.begin(), png.end()};
+  return objscan::encodePng(cv::Mat(3, 4, CV_16UC1, cv::Scalar(1000)));
 }
 
 }  // namespace

@@ -4,12 +4,12 @@
 #include <cstdint>
 #include <fstream>
 #include <limits>
-#include <opencv2/imgcodecs.hpp>
 #include <string>
 #include <string_view>
 
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/error.h"
+#include "objscan/core/image_codec.h"
 
 namespace objscan::capture::detail {
 namespace fs = std::filesystem;
@@ -67,7 +67,7 @@ std::optional<cv::Size> declaredImageSize(std::string_view bytes) {
   return std::nullopt;
 }
 
-cv::Mat readImage(const fs::path& path, int flags,
+cv::Mat readImage(const fs::path& path, ImageDecoding decoding,
                   const std::function<void(cv::Size)>& check_size) {
   const std::string bytes = readWholeFile(path);
   if (bytes.empty()) throw InputError(path, "the image file is empty");
@@ -102,8 +102,7 @@ cv::Mat readImage(const fs::path& path, int flags,
                                  " pixels, more than its compressed data can hold");
     }
   }
-  cv::Mat image = cv::imdecode(
-      cv::Mat(1, static_cast<int>(bytes.size()), CV_8UC1, const_cast<char*>(bytes.data())), flags);
+  cv::Mat image = decodeImage(view, decoding);
   if (image.empty()) throw InputError(path, "cannot be decoded as a PNG or JPEG image");
   check_size(image.size());
   return image;

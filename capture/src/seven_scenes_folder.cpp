@@ -4,8 +4,6 @@
 #include <charconv>
 #include <cmath>
 #include <map>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 #include <sstream>
 #include <string>
 #include <string_view>
@@ -339,7 +337,7 @@ void SevenScenesFolder::readPoses() {
 RgbdFrame SevenScenesFolder::load(std::size_t i, const Intrinsics& intrinsics) const {
   const SevenScenesFrameFiles& f = frames_.at(i);
   const fs::path depth_path = dir_ / f.depth;
-  const cv::Mat raw = detail::readImage(depth_path, cv::IMREAD_UNCHANGED, [&](cv::Size size) {
+  const cv::Mat raw = detail::readImage(depth_path, ImageDecoding::kStoredGrey, [&](cv::Size size) {
     if (size.width == intrinsics.width_px && size.height == intrinsics.height_px) return;
     std::string problem = "image is ";
     problem.append(std::to_string(size.width))
@@ -373,7 +371,7 @@ RgbdFrame SevenScenesFolder::load(std::size_t i, const Intrinsics& intrinsics) c
 
   if (!f.color.empty()) {
     const fs::path color_path = dir_ / f.color;
-    const cv::Mat bgr = detail::readImage(color_path, cv::IMREAD_COLOR, [&](cv::Size size) {
+    frame.color_rgb = detail::readImage(color_path, ImageDecoding::kRgb8, [&](cv::Size size) {
       if (size == raw.size()) return;
       std::string problem = "colour image is ";
       problem.append(std::to_string(size.width))
@@ -387,7 +385,6 @@ RgbdFrame SevenScenesFolder::load(std::size_t i, const Intrinsics& intrinsics) c
           .append(std::to_string(raw.rows));
       throw InputError(color_path, problem);
     });
-    cv::cvtColor(bgr, frame.color_rgb, cv::COLOR_BGR2RGB);
   }
   return frame;
 }

@@ -3,8 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 #include <optional>
 #include <sstream>
 
@@ -239,7 +237,7 @@ void TumFolder::associateByTime() {
 RgbdFrame TumFolder::load(std::size_t i) const {
   const TumFrameFiles& f = frames_.at(i);
   const fs::path depth_path = dir_ / f.depth;
-  const cv::Mat raw = readImage(depth_path, cv::IMREAD_UNCHANGED, [&](cv::Size size) {
+  const cv::Mat raw = readImage(depth_path, ImageDecoding::kStoredGrey, [&](cv::Size size) {
     if (size.width == intrinsics_.width_px && size.height == intrinsics_.height_px) return;
     throw InputError(depth_path,
                      "image is " + std::to_string(size.width) + "x" + std::to_string(size.height) +
@@ -260,10 +258,9 @@ RgbdFrame TumFolder::load(std::size_t i) const {
 
   if (!f.rgb.empty()) {
     const fs::path rgb_path = dir_ / f.rgb;
-    const cv::Mat bgr = readImage(rgb_path, cv::IMREAD_COLOR, [&](cv::Size size) {
+    frame.color_rgb = readImage(rgb_path, ImageDecoding::kRgb8, [&](cv::Size size) {
       if (size != raw.size()) throw InputError(rgb_path, "colour and depth images differ in size");
     });
-    cv::cvtColor(bgr, frame.color_rgb, cv::COLOR_BGR2RGB);
   }
   return frame;
 }

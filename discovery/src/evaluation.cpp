@@ -11,11 +11,11 @@
 
 #include <tbb/parallel_for.h>
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/error.h"
+#include "objscan/core/image_codec.h"
 #include "stratify.h"
 
 namespace objscan::discovery {
@@ -271,10 +271,7 @@ void writePrPlot(const EvalResult& result, const std::filesystem::path& png, int
     cv::putText(img, legend.str(), p + cv::Point(38, 0), cv::FONT_HERSHEY_SIMPLEX, 0.45, black, 1,
                 cv::LINE_AA);
   }
-  std::vector<unsigned char> bytes;
-  if (!cv::imencode(".png", img, bytes)) throw OutputError(png, "could not encode the plot");
-  writeFileAtomically(png,
-                      std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
+  writeFileAtomically(png, encodePng(img));
 }
 
 RankingEvaluation evaluateRanking(const GroundTruthObjects& truth,

@@ -7,10 +7,9 @@
 #include <stdexcept>
 #include <string>
 
-#include <opencv2/imgcodecs.hpp>
-
 #include "objscan/core/clock.h"
 #include "objscan/core/error.h"
+#include "objscan/core/image_codec.h"
 #include "objscan/core/memory.h"
 #include "objscan/core/progress.h"
 
@@ -36,11 +35,9 @@ void requireMemoryForPictures(const TriangleMesh& mesh, const PictureOptions& op
                            "is free)");
 }
 
-report::Picture encodePng(const cv::Mat& image) {
-  std::vector<unsigned char> bytes;
-  if (!cv::imencode(".png", image, bytes)) throw std::runtime_error("could not encode a PNG");
+report::Picture pngPicture(const cv::Mat& image) {
   report::Picture p;
-  p.png.assign(reinterpret_cast<const char*>(bytes.data()), bytes.size());
+  p.png = encodePng(image);
   p.width = static_cast<std::uint32_t>(image.cols);
   p.height = static_cast<std::uint32_t>(image.rows);
   return p;
@@ -101,13 +98,13 @@ PicturesOutcome renderPictures(const TriangleMesh& mesh, const Trajectory* traje
   pictures.camera =
       report::OverviewCamera{render::toString(view.kind), view.T_W_C, view.intrinsics};
   const render::Snapshot overview = renderer.overview(view);
-  pictures.overview = encodePng(overview.bgr);
+  pictures.overview = pngPicture(overview.bgr);
   pictures.visible = overview.labelled;
   ++out.images;
   if (options.ranks_image) {
     cv::Mat ranks16;
     overview.ranks.convertTo(ranks16, CV_16U);
-    pictures.overview_ranks = encodePng(ranks16);
+    pictures.overview_ranks = pngPicture(ranks16);
     ++out.images;
   }
   progress.advance();
@@ -115,14 +112,14 @@ PicturesOutcome renderPictures(const TriangleMesh& mesh, const Trajectory* traje
   std::vector<cv::Mat> closeups;
   for (std::size_t i = 0; i < paint.size() && !stopped(); ++i) {
     closeups.push_back(renderer.closeUp(i, view, w, h).bgr);
-    pictures.closeups[paint[i].rank] = encodePng(closeups.back());
+    pictures.closeups[paint[i].rank] = pngPicture(closeups.back());
     ++out.images;
     progress.advance();
   }
   if (stopped()) {
     out.interrupted = true;
   } else if (!closeups.empty()) {
-    pictures.contact_sheet = encodePng(render::contactSheet(closeups, paint));
+    pictures.contact_sheet = pngPicture(render::contactSheet(closeups, paint));
     ++out.images;
     progress.advance();
   }

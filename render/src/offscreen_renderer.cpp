@@ -1,11 +1,14 @@
 #include "objscan/render/offscreen_renderer.h"
 
+// The prototypes only give the entry points' types (decltype below): nothing links libOSMesa.
 #define GL_GLEXT_PROTOTYPES
 #include <GL/osmesa.h>
 // osmesa.h brings GL/gl.h; glext.h adds the OpenGL 3.3 entry points, which libOSMesa exports.
 #include <GL/glext.h>
+#include <dlfcn.h>
 
 #include <array>
+#include <mutex>
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 #include <string>
@@ -13,6 +16,56 @@
 
 namespace objscan::render {
 namespace {
+
+// libOSMesa is loaded when the first renderer is made, not when objscan starts: with the LLVM
+// it brings (llvmpipe), linking it added 80 ms to the start of every command, most of which never
+// render. Its entry points are looked up by name in the loaded library. libepoxy, Debian's
+// loader of OpenGL entry points, finds them through GLX or EGL only, which OSMesa is not.
+// clang-format off
+#define OBJSCAN_OSMESA_FUNCTIONS(X)                                                           \
+  X(OSMesaCreateContextAttribs) X(OSMesaMakeCurrent) X(OSMesaDestroyContext)                 \
+  X(glAttachShader) X(glBindBuffer) X(glBindFramebuffer) X(glBindRenderbuffer)               \
+  X(glBindVertexArray) X(glBufferData) X(glCheckFramebufferStatus) X(glClear)                \
+  X(glClearBufferfv) X(glClearBufferiv) X(glCompileShader) X(glCreateProgram)                \
+  X(glCreateShader) X(glDeleteBuffers) X(glDeleteFramebuffers) X(glDeleteProgram)            \
+  X(glDeleteRenderbuffers) X(glDeleteShader) X(glDeleteVertexArrays) X(glDepthFunc)          \
+  X(glDisable) X(glDrawBuffers) X(glDrawElements) X(glEnable) X(glEnableVertexAttribArray)   \
+  X(glFramebufferRenderbuffer) X(glGenBuffers) X(glGenFramebuffers) X(glGenRenderbuffers)    \
+  X(glGenVertexArrays) X(glGetError) X(glGetProgramiv) X(glGetShaderInfoLog)                 \
+  X(glGetShaderiv) X(glGetUniformLocation) X(glLinkProgram) X(glPixelStorei) X(glReadBuffer) \
+  X(glReadPixels) X(glRenderbufferStorage) X(glShaderSource) X(glUniformMatrix4fv)           \
+  X(glUseProgram) X(glVertexAttribIPointer) X(glVertexAttribPointer) X(glViewport)
+// clang-format on
+
+// Pointers named as the functions, so that this file's calls reach them: they hide the global
+// prototypes here, and a call of an entry point missing from the list fails to link.
+#define OBJSCAN_DECLARE(name) decltype(&::name) name = nullptr;
+OBJSCAN_OSMESA_FUNCTIONS(OBJSCAN_DECLARE)
+#undef OBJSCAN_DECLARE
+
+/// Loads libOSMesa and its entry points once per process; throws when it cannot.
+void loadOsMesa() {
+  static std::once_flag once;
+  static std::string problem;
+  std::call_once(once, [] {
+    // Never closed: the entry points stay valid for the process's life.
+    void* library = dlopen("libOSMesa.so.8", RTLD_NOW | RTLD_LOCAL);
+    if (library == nullptr) {
+      const char* why = dlerror();
+      problem = std::string(
+                    "cannot load OSMesa's off-screen OpenGL, libOSMesa.so.8 (is "
+                    "libosmesa6 installed?): ") +
+                (why ? why : "unknown error");
+      return;
+    }
+#define OBJSCAN_LOAD(name)                                        \
+  name = reinterpret_cast<decltype(name)>(dlsym(library, #name)); \
+  if (name == nullptr && problem.empty()) problem = "libOSMesa.so.8 has no " #name;
+    OBJSCAN_OSMESA_FUNCTIONS(OBJSCAN_LOAD)
+#undef OBJSCAN_LOAD
+  });
+  if (!problem.empty()) throw std::runtime_error(problem);
+}
 
 constexpr const char* kVertexShader = R"(#version 330 core
 layout(location = 0) in vec3 p_W;
@@ -119,6 +172,7 @@ OffscreenRenderer::OffscreenRenderer(const Intrinsics& intrinsics, float near_m,
   d.intrinsics = intrinsics;
   d.near_m = near_m;
   d.far_m = far_m;
+  loadOsMesa();
   const int attributes[] = {OSMESA_FORMAT,
                             OSMESA_RGBA,
                             OSMESA_DEPTH_BITS,

@@ -105,6 +105,20 @@ TEST(Cli, HelpForEveryCommandExitsZero) {
       << top.out;
 }
 
+TEST(Cli, StartsWithoutTheLibrariesThatMadeEveryStartSlow) {
+  // The dynamic loader's own list of what a start maps (LD_TRACE_LOADED_OBJECTS, as ldd asks).
+  // OSMesa (with LLVM) is loaded by the first renderer, and OpenCV's imgcodecs (with GDAL and
+  // a hundred more) is not used: together they took 0.18 s of every start.
+  testing::ProcessOptions options;
+  options.env = {"LD_TRACE_LOADED_OBJECTS=1"};
+  const ProcessResult r = testing::runProcess({OBJSCAN_EXE}, options);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("libspng"), std::string::npos) << r.out;  // the list is a real one
+  for (const char* heavy : {"libOSMesa", "libLLVM", "libopencv_imgcodecs", "libgdal"}) {
+    EXPECT_EQ(r.out.find(heavy), std::string::npos) << heavy << " in\n" << r.out;
+  }
+}
+
 TEST(Cli, CompletionAndManPageComeFromTheOptionsThemselves) {
   // Issue 18: shell completion and a man page, generated from the same help text.
   TempDir dir;

@@ -5,8 +5,8 @@
 
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 #include <string>
@@ -14,6 +14,7 @@
 
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/error.h"
+#include "objscan/core/image_codec.h"
 #include "objscan/core/log.h"
 #include "objscan/core/ply_io.h"
 #include "objscan/render/offscreen_renderer.h"
@@ -27,7 +28,12 @@ namespace {
 constexpr double kDepthFactor = 5000.0;
 
 void writePng(const fs::path& path, const cv::Mat& image) {
-  if (!cv::imwrite(path.string(), image)) throw OutputError(path, "cannot write the PNG image");
+  // Into the recording's temporary folder, which is renamed into place whole.
+  const std::string png = encodePng(image);
+  std::ofstream out(path, std::ios::binary);
+  if (!out.write(png.data(), static_cast<std::streamsize>(png.size())) || !out.flush()) {
+    throw OutputError(path, "cannot write the PNG image");
+  }
 }
 
 std::string stampName(double t) {
