@@ -234,6 +234,24 @@ TEST_F(OpenNI, ReplaySelectionKeepsRecordingIndices) {
   }
 }
 
+/// For each frame of `seen`, in order, the frame of `all` with the same time stamp: `all` may hold
+/// frames that `seen` lacks, not the reverse. At the first frame without one it fails the test
+/// and stops, so the result is then shorter than `seen`.
+std::vector<RgbdFrame> sameStampFrames(const std::vector<RgbdFrame>& seen,
+                                       const std::vector<RgbdFrame>& all) {
+  std::vector<RgbdFrame> out;
+  std::size_t j = 0;
+  for (const RgbdFrame& frame : seen) {
+    while (j < all.size() && all[j].stamp_s < frame.stamp_s - 1e-6) ++j;
+    if (j == all.size()) {
+      ADD_FAILURE() << "no frame stamped " << frame.stamp_s;
+      break;
+    }
+    out.push_back(all[j++]);
+  }
+  return out;
+}
+
 TEST_F(OpenNI, LiveVirtualSensorDeliversTheFoldersFramesInOrder) {
   // A live sensor does not wait for its reader: OpenNI2 keeps only the newest frame for one that
   // falls behind. At 20 Hz a reader on a quiet machine misses none, but under the sanitizers,
@@ -247,13 +265,8 @@ TEST_F(OpenNI, LiveVirtualSensorDeliversTheFoldersFramesInOrder) {
   const std::vector<RgbdFrame> got = readAll(*live);
   ASSERT_GE(4 * got.size(), 3 * kFolderFrames);
   ASSERT_LE(got.size(), kFolderFrames);
-  std::vector<RgbdFrame> matched;
-  std::size_t j = 0;
-  for (const RgbdFrame& frame : got) {
-    while (j < expected.size() && expected[j].stamp_s < frame.stamp_s - 1e-6) ++j;
-    ASSERT_LT(j, expected.size()) << "a frame stamped " << frame.stamp_s << " is not the folder's";
-    matched.push_back(expected[j++]);
-  }
+  const std::vector<RgbdFrame> matched = sameStampFrames(got, expected);
+  ASSERT_EQ(matched.size(), got.size()) << "a frame delivered is not the folder's";
   expectSameFrames(matched, got, got.size());
   EXPECT_NEAR(got.back().stamp_s, expected.back().stamp_s, 1e-6);
   // Opened without a recording, it records nothing.
@@ -266,12 +279,12 @@ TEST_F(OpenNI, LiveVirtualSensorDeliversTheFoldersFramesInOrder) {
 /// recording may hold frames the reader never saw.
 void expectRecordedAsReturned(const std::vector<RgbdFrame>& returned,
                               const std::vector<RgbdFrame>& replayed) {
-  std::size_t j = 0;
-  for (const RgbdFrame& frame : returned) {
+  const std::vector<RgbdFrame> recorded = sameStampFrames(returned, replayed);
+  ASSERT_EQ(recorded.size(), returned.size()) << "a frame next() returned is not in the recording";
+  for (std::size_t i = 0; i < returned.size(); ++i) {
+    const RgbdFrame& frame = returned[i];
+    const RgbdFrame& got = recorded[i];
     SCOPED_TRACE("frame " + std::to_string(frame.index) + " that next() returned");
-    while (j < replayed.size() && replayed[j].stamp_s < frame.stamp_s - 1e-6) ++j;
-    ASSERT_LT(j, replayed.size()) << "not in the recording";
-    const RgbdFrame& got = replayed[j];
     EXPECT_NEAR(got.stamp_s, frame.stamp_s, 1e-6);
     ASSERT_EQ(got.depth_m.size(), frame.depth_m.size());
     ASSERT_EQ(got.depth_m.type(), frame.depth_m.type());
@@ -279,7 +292,6 @@ void expectRecordedAsReturned(const std::vector<RgbdFrame>& returned,
                           frame.depth_m.total() * frame.depth_m.elemSize()),
               0);
     EXPECT_TRUE(sameImage(frame.color_rgb, got.color_rgb));
-    ++j;
   }
 }
 
