@@ -125,6 +125,42 @@ void writeFileAtomically(const fs::path& path, std::string_view bytes) {
   }
 }
 
+void writeStagedFile(const fs::path& path, std::string_view bytes) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+  if (fd < 0) throw OutputError(path, "cannot create a file there: " + errnoText());
+  auto fail = [&](const std::string& what) {
+    const std::string reason = what + ": " + errnoText();
+    ::close(fd);
+    ::unlink(path.c_str());
+    throw OutputError(path, reason);
+  };
+  const char* data = bytes.data();
+  size_t left = bytes.size();
+  while (left > 0) {
+    const ssize_t n = ::write(fd, data, left);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      fail("write failed");
+    }
+    data += n;
+    left -= static_cast<size_t>(n);
+  }
+  if (::close(fd) != 0) {
+    const std::string reason = "close failed: " + errnoText();
+    ::unlink(path.c_str());
+    throw OutputError(path, reason);
+  }
+}
+
+void makeStagedFolderDurable(const fs::path& folder) {
+  const int fd = ::open(folder.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) throw OutputError(folder, "cannot open the folder: " + errnoText());
+  const int status = ::syncfs(fd);
+  const std::string reason = status != 0 ? errnoText() : std::string();
+  ::close(fd);
+  if (status != 0) throw OutputError(folder, "cannot write its files to disk: " + reason);
+}
+
 std::string readWholeFile(const fs::path& path, std::uintmax_t max_bytes) {
   std::error_code ec;
   const fs::file_status status = fs::status(path, ec);

@@ -26,11 +26,18 @@ namespace fs = std::filesystem;
 using json_node::Json;
 using json_node::Node;
 
-void writeJson(const fs::path& file, const Json& doc) {
-  // JSON is UTF-8: a path that is not (a folder named in Latin-1) is written with U+FFFD in
-  // place of its stray bytes rather than failing the run at its last step.
-  writeFileAtomically(file, doc.dump(1, ' ', false, Json::error_handler_t::replace) + "\n");
+/// JSON is UTF-8: a path that is not (a folder named in Latin-1) is written with U+FFFD in place
+/// of its stray bytes rather than failing the run at its last step.
+std::string jsonText(const Json& doc) {
+  return doc.dump(1, ' ', false, Json::error_handler_t::replace) + "\n";
 }
+
+/// writeJson for a file in a staging folder (writeStagedFile).
+void writeStagedJson(const fs::path& file, const Json& doc) {
+  writeStagedFile(file, jsonText(doc));
+}
+
+void writeJson(const fs::path& file, const Json& doc) { writeFileAtomically(file, jsonText(doc)); }
 
 Json vectorJson(const Eigen::Vector3f& v) { return {v.x(), v.y(), v.z()}; }
 
@@ -168,10 +175,10 @@ void writeObjects(const fs::path& partial, const Hypotheses& hypotheses,
     if (!parts[scene]) parts[scene].emplace(run.scenes[scene].mesh);
     const HypothesisRecord& h = hypotheses.hypotheses.at(i);
     const fs::path file = partial / fs::path(h.file).filename();
-    writeFileAtomically(
+    writeStagedFile(
         file, encodeMesh(parts[scene]->subset(run.ranked[i].hypothesis.segment.vertices), format,
                          ups[scene]));
-    if (h.box) writeJson(partial / rankFileName(h.rank, ".json"), objectPoseJson(h));
+    if (h.box) writeStagedJson(partial / rankFileName(h.rank, ".json"), objectPoseJson(h));
   }
 }
 
@@ -188,8 +195,8 @@ void writeSceneCopies(const fs::path& partial, const Hypotheses& hypotheses,
   for (std::size_t i = 0; i < run.scenes.size() && i < hypotheses.scenes.size(); ++i) {
     const std::string& copy = hypotheses.scenes[i].mesh_copy;
     if (copy.empty()) continue;
-    writeFileAtomically(partial / fs::path(copy).filename(),
-                        encodeMesh(run.scenes[i].mesh, MeshFormat::kPly));
+    writeStagedFile(partial / fs::path(copy).filename(),
+                    encodeMesh(run.scenes[i].mesh, MeshFormat::kPly));
   }
 }
 
@@ -688,14 +695,16 @@ void writePictures(const fs::path& dir, const Pictures& pictures) {
       if (!swapped) fs::remove_all(path, ec);
     }
   } staging{partial};
-  if (pictures.camera) writeJson(partial / "overview_camera.json", cameraJson(*pictures.camera));
+  if (pictures.camera) {
+    writeStagedJson(partial / "overview_camera.json", cameraJson(*pictures.camera));
+  }
   const auto put = [&partial](const char* name, const std::optional<Picture>& p) {
-    if (p) writeFileAtomically(partial / name, p->png);
+    if (p) writeStagedFile(partial / name, p->png);
   };
   put("overview.png", pictures.overview);
   put("overview_ranks.png", pictures.overview_ranks);
   for (const auto& [rank, p] : pictures.closeups) {
-    writeFileAtomically(partial / rankFileName(rank, ".png"), p.png);
+    writeStagedFile(partial / rankFileName(rank, ".png"), p.png);
   }
   put("contact_sheet.png", pictures.contact_sheet);
   swapInFolder(dir, kRendersFolder);

@@ -51,6 +51,33 @@ TEST(AtomicFile, FailedWriteLeavesTheOldFileAndNoTemporary) {
   EXPECT_EQ(testing::entryCount(dir.path()), 1u);
 }
 
+TEST(AtomicFile, StagedFilesAreWrittenWholeOrNotAtAll) {
+  testing::TempDir dir;
+  const std::filesystem::path staging = dir / "objects.partial";
+  std::filesystem::create_directory(staging);
+  writeStagedFile(staging / "a.ply", "mesh");
+  EXPECT_EQ(readWholeFile(staging / "a.ply"), "mesh");
+  // A staged file is new: one already there is a mistake, named, and left as it was.
+  EXPECT_THROW(writeStagedFile(staging / "a.ply", "other"), OutputError);
+  EXPECT_EQ(readWholeFile(staging / "a.ply"), "mesh");
+  // A write that fails part-way (a file-size limit, as a full disk) leaves no half file.
+  bool threw = false;
+  {
+    const testing::FileSizeLimit limit(4);
+    try {
+      writeStagedFile(staging / "b.ply", std::string(1000, 'n'));
+    } catch (const OutputError& e) {
+      threw = true;
+      EXPECT_NE(std::string(e.what()).find("b.ply"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("write failed"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_TRUE(threw);
+  EXPECT_EQ(testing::entryCount(staging), 1u);
+  makeStagedFolderDurable(staging);
+  EXPECT_THROW(makeStagedFolderDurable(dir / "missing.partial"), OutputError);
+}
+
 TEST(AtomicFile, FailedRenameRemovesTheTemporary) {
   testing::TempDir dir;
   std::filesystem::create_directories(dir / "target" / "inside");

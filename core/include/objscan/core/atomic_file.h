@@ -15,6 +15,18 @@ namespace objscan {
 /// removing the temporary file.
 void writeFileAtomically(const std::filesystem::path& path, std::string_view bytes);
 
+/// Writes `bytes` to a new file `path` in a staging folder (freshPartialFolder), which is moved
+/// into place whole (swapInFolder): the file needs no temporary name of its own, and is made
+/// durable with the whole folder by makeStagedFolderDurable, not one fsync at a time (a
+/// discovery's objects/ holds a thousand files: 1 s of system calls). Throws OutputError naming
+/// the path when it exists already or cannot be written, after removing what was written.
+void writeStagedFile(const std::filesystem::path& path, std::string_view bytes);
+
+/// Makes every file written into the staging folder `folder` durable (syncfs of its file system,
+/// one call for all of them), before it is renamed into place. Throws OutputError naming the
+/// folder when the file system reports a write error.
+void makeStagedFolderDurable(const std::filesystem::path& folder);
+
 /// Removes from `folder` (not its subfolders) the temporary files writeFileAtomically leaves when
 /// its process is killed mid-write: names exactly of its form, "NAME.tmp-PID-N", whose process PID
 /// no longer runs. Returns how many it removed. Only for a folder this process holds

@@ -4,6 +4,7 @@
 #include <string>
 #include <system_error>
 
+#include "objscan/core/atomic_file.h"
 #include "objscan/core/error.h"
 
 /// Results folders: created up front, and folder outputs (objects/, renders/) staged beside their
@@ -49,11 +50,12 @@ inline std::filesystem::path freshPartialFolder(const std::filesystem::path& out
 }
 
 /// Replaces OUT/NAME with OUT/NAME.partial, so OUT/NAME never mixes one run's files with
-/// another's.
+/// another's; the staged files are made durable first (makeStagedFolderDurable).
 inline void swapInFolder(const std::filesystem::path& out, const std::string& name) {
   namespace fs = std::filesystem;
   const fs::path target = out / name, partial = out / (name + ".partial"),
                  old = out / (name + ".old");
+  makeStagedFolderDurable(partial);
   std::error_code ec;
   fs::remove_all(old, ec);
   if (fs::exists(target)) {
