@@ -45,6 +45,22 @@ long temporaryWriter(const std::string& name) {
   return std::strtol(name.c_str() + at + kMark, nullptr, 10);
 }
 
+/// Writes all of `bytes` to `fd`; false (errno set) when a write fails.
+bool writeAll(int fd, std::string_view bytes) {
+  const char* data = bytes.data();
+  size_t left = bytes.size();
+  while (left > 0) {
+    const ssize_t n = ::write(fd, data, left);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      return false;
+    }
+    data += n;
+    left -= static_cast<size_t>(n);
+  }
+  return true;
+}
+
 }  // namespace
 
 /// "<name>.tmp-<pid>-<random>", or ".objscan.tmp-<pid>-<random>" when that would pass the file
@@ -94,17 +110,7 @@ void writeFileAtomically(const fs::path& path, std::string_view bytes) {
     throw OutputError(path, reason);
   };
 
-  const char* data = bytes.data();
-  size_t left = bytes.size();
-  while (left > 0) {
-    const ssize_t n = ::write(fd, data, left);
-    if (n < 0) {
-      if (errno == EINTR) continue;
-      fail("write failed");
-    }
-    data += n;
-    left -= static_cast<size_t>(n);
-  }
+  if (!writeAll(fd, bytes)) fail("write failed");
   if (::fsync(fd) != 0) fail("fsync failed");
   if (::close(fd) != 0) {
     const std::string reason = "close failed: " + errnoText();
@@ -134,17 +140,7 @@ void writeStagedFile(const fs::path& path, std::string_view bytes) {
     ::unlink(path.c_str());
     throw OutputError(path, reason);
   };
-  const char* data = bytes.data();
-  size_t left = bytes.size();
-  while (left > 0) {
-    const ssize_t n = ::write(fd, data, left);
-    if (n < 0) {
-      if (errno == EINTR) continue;
-      fail("write failed");
-    }
-    data += n;
-    left -= static_cast<size_t>(n);
-  }
+  if (!writeAll(fd, bytes)) fail("write failed");
   if (::close(fd) != 0) {
     const std::string reason = "close failed: " + errnoText();
     ::unlink(path.c_str());
