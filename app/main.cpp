@@ -25,6 +25,25 @@
 #include "options.h"
 #include "shell_docs.h"
 
+#ifdef OBJSCAN_MIMALLOC
+// Debian's mimalloc is built as C: its operator new ends the process with abort() when memory runs
+// out, where the C++ one throws std::bad_alloc, which main reports in one line (exit 1). These
+// throwing forms take its place (a program's own definitions come before any library's); the
+// rest (delete, the nothrow forms) stay mimalloc's, on the same heap.
+void* operator new(std::size_t bytes) {
+  if (void* p = mi_malloc(bytes)) return p;
+  throw std::bad_alloc();
+}
+void* operator new[](std::size_t bytes) { return ::operator new(bytes); }
+void* operator new(std::size_t bytes, std::align_val_t alignment) {
+  if (void* p = mi_malloc_aligned(bytes, static_cast<std::size_t>(alignment))) return p;
+  throw std::bad_alloc();
+}
+void* operator new[](std::size_t bytes, std::align_val_t alignment) {
+  return ::operator new(bytes, alignment);
+}
+#endif
+
 namespace {
 
 using namespace objscan::app;

@@ -141,6 +141,7 @@ void writeStagedFile(const fs::path& path, std::string_view bytes) {
     throw OutputError(path, reason);
   };
   if (!writeAll(fd, bytes)) fail("write failed");
+  if (::fsync(fd) != 0) fail("fsync failed");
   if (::close(fd) != 0) {
     const std::string reason = "close failed: " + errnoText();
     ::unlink(path.c_str());
@@ -149,12 +150,12 @@ void writeStagedFile(const fs::path& path, std::string_view bytes) {
 }
 
 void makeStagedFolderDurable(const fs::path& folder) {
+  // Its files were flushed as they were written; this makes their names durable. Best effort, as
+  // for writeFileAtomically's rename: some file systems refuse fsync on folders.
   const int fd = ::open(folder.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (fd < 0) throw OutputError(folder, "cannot open the folder: " + errnoText());
-  const int status = ::syncfs(fd);
-  const std::string reason = status != 0 ? errnoText() : std::string();
+  if (fd < 0) return;
+  ::fsync(fd);
   ::close(fd);
-  if (status != 0) throw OutputError(folder, "cannot write its files to disk: " + reason);
 }
 
 std::string readWholeFile(const fs::path& path, std::uintmax_t max_bytes) {

@@ -63,9 +63,11 @@ cv::Mat decodeJpeg(std::string_view bytes, ImageDecoding decoding) {
   const bool grey = decoding == ImageDecoding::kStoredGrey && colourspace == TJCS_GRAY;
   cv::Mat image(height, width, grey ? CV_8UC1 : CV_8UC3);
   // TJFLAG_LIMITSCANS: a progressive JPEG of thousands of scans would take minutes to decode.
+  // TJFLAG_STOPONWARNING: after a warning, TurboJPEG 2.1 reports a later fatal error as a warning
+  // too, with the rows after it never written; a damaged stream is refused instead.
   if (tjDecompress2(tj.get(), data, size, image.data, width, static_cast<int>(image.step[0]),
-                    height, grey ? TJPF_GRAY : TJPF_RGB, TJFLAG_LIMITSCANS) != 0 &&
-      tjGetErrorCode(tj.get()) != TJERR_WARNING) {
+                    height, grey ? TJPF_GRAY : TJPF_RGB,
+                    TJFLAG_LIMITSCANS | TJFLAG_STOPONWARNING) != 0) {
     return {};
   }
   return image;

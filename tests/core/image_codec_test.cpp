@@ -122,7 +122,22 @@ TEST(ImageCodec, DamagedOrForeignBytesDecodeToNothing) {
   EXPECT_TRUE(decodeImage("", ImageDecoding::kRgb8).empty());
   EXPECT_TRUE(decodeImage("GIF89a....", ImageDecoding::kRgb8).empty());
   const std::string jpeg = encodeJpeg(testCard(16, 16), 90);
+  EXPECT_FALSE(decodeImage(jpeg, ImageDecoding::kRgb8).empty());
   EXPECT_TRUE(decodeImage(jpeg.substr(0, 20), ImageDecoding::kRgb8).empty());
+  // Stray bytes before the start of scan: libjpeg's warning ("extraneous bytes before marker"),
+  // after which TurboJPEG would report a later fatal error as a warning too. Refused.
+  std::string stray = jpeg;
+  const std::size_t scan = stray.find("\xff\xda");
+  ASSERT_NE(scan, std::string::npos);
+  stray.insert(scan, "\x12\x34");
+  EXPECT_TRUE(decodeImage(stray, ImageDecoding::kRgb8).empty());
+  // Cut short in its scan and given an end marker, as readImage's end check would pass: libjpeg
+  // warns ("premature end of data segment") and fills the rest. Refused as well.
+  const std::string big = encodeJpeg(testCard(64, 48), 90);
+  const std::size_t big_scan = big.find("\xff\xda");
+  ASSERT_NE(big_scan, std::string::npos);
+  const std::string cut = big.substr(0, (big_scan + big.size()) / 2) + "\xff\xd9";
+  EXPECT_TRUE(decodeImage(cut, ImageDecoding::kRgb8).empty());
 }
 
 TEST(ImageCodec, EncodersRefuseWhatTheyCannotWrite) {

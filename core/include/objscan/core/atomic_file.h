@@ -16,15 +16,15 @@ namespace objscan {
 void writeFileAtomically(const std::filesystem::path& path, std::string_view bytes);
 
 /// Writes `bytes` to a new file `path` in a staging folder (freshPartialFolder), which is moved
-/// into place whole (swapInFolder): the file needs no temporary name of its own, and is made
-/// durable with the whole folder by makeStagedFolderDurable, not one fsync at a time (a
-/// discovery's objects/ holds a thousand files: 1 s of system calls). Throws OutputError naming
-/// the path when it exists already or cannot be written, after removing what was written.
+/// into place whole (swapInFolder): the file needs no temporary name, rename and folder flush of
+/// its own, only its data flushed (fsync). A discovery's objects/ holds a thousand files, and
+/// writeFileAtomically's four steps a file took 1 s of system calls there. Throws OutputError
+/// naming the path when it exists already or cannot be written, after removing what was written.
 void writeStagedFile(const std::filesystem::path& path, std::string_view bytes);
 
-/// Makes every file written into the staging folder `folder` durable (syncfs of its file system,
-/// one call for all of them), before it is renamed into place. Throws OutputError naming the
-/// folder when the file system reports a write error.
+/// Makes the names of the files written into the staging folder `folder` durable (one fsync of
+/// the folder), before it is renamed into place. Best effort, as a rename's flush: some file
+/// systems refuse fsync on folders.
 void makeStagedFolderDurable(const std::filesystem::path& folder);
 
 /// Removes from `folder` (not its subfolders) the temporary files writeFileAtomically leaves when

@@ -14,7 +14,8 @@ namespace objscan {
 /// What decodeImage makes of the stored samples.
 enum class ImageDecoding {
   /// A greyscale PNG as stored: CV_8UC1 (depths of 1 to 8 bits widened to 8) or CV_16UC1 in the
-  /// host's byte order (a depth image). Anything else as kRgb8 would give it.
+  /// host's byte order (a depth image); a greyscale JPEG as CV_8UC1. Anything else as kRgb8
+  /// would give it.
   kStoredGrey,
   /// CV_8UC3 in R, G, B order: 16-bit samples keep their high byte, a palette is looked up, grey is
   /// repeated, alpha and gamma are ignored.
@@ -22,8 +23,9 @@ enum class ImageDecoding {
 };
 
 /// Decodes a whole PNG or JPEG held in `bytes`. An empty Mat when `bytes` are neither or cannot
-/// be decoded. A JPEG that decodes with a warning (a damaged but readable stream) is returned as
-/// decoded. Callers bound the declared size first (a header can ask for any size).
+/// be decoded, a JPEG that decodes only with a warning (a damaged stream) included. EXIF
+/// orientation is not applied, and CMYK JPEGs are not read. Callers bound the declared size first
+/// (a header can ask for any size).
 cv::Mat decodeImage(std::string_view bytes, ImageDecoding decoding);
 
 /// A PNG of `image`: CV_8UC1 or CV_16UC1 (grey), CV_8UC3 (B, G, R order, as OpenCV keeps colour)

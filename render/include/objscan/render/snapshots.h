@@ -63,7 +63,7 @@ SnapshotView overviewView(const TriangleMesh& scene, const Trajectory* trajector
 
 /// One rendered picture.
 struct Snapshot {
-  cv::Mat bgr;  ///< CV_8UC3, ready for cv::imwrite
+  cv::Mat bgr;  ///< CV_8UC3, B, G, R order (encodePng's colour order)
   /// CV_32SC1: the rank of the hypothesis painted at each pixel, 0 where the scene (or nothing) is.
   cv::Mat ranks;
   /// The ranks whose label could be placed (visible in the picture), in rank order.
