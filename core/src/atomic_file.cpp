@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <optional>
 #include <random>
 #include <string>
 
@@ -61,6 +62,37 @@ bool writeAll(int fd, std::string_view bytes) {
   return true;
 }
 
+/// Creates `file` (which must not exist), writes `bytes` to it and flushes it to disk (fsync),
+/// with `mode` when given. On any failure removes it and throws OutputError naming `named` (the
+/// file a user asked for, where `file` is its temporary).
+void writeNewFlushed(const fs::path& file, const fs::path& named, std::string_view bytes,
+                     std::optional<mode_t> mode) {
+  const int fd = ::open(file.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+  if (fd < 0) throw OutputError(named, "cannot create a file there: " + errnoText());
+  if (mode) ::fchmod(fd, *mode);
+  auto fail = [&](const std::string& what) {
+    const std::string reason = what + ": " + errnoText();
+    ::close(fd);
+    ::unlink(file.c_str());
+    throw OutputError(named, reason);
+  };
+  if (!writeAll(fd, bytes)) fail("write failed");
+  if (::fsync(fd) != 0) fail("fsync failed");
+  if (::close(fd) != 0) {
+    const std::string reason = "close failed: " + errnoText();
+    ::unlink(file.c_str());
+    throw OutputError(named, reason);
+  }
+}
+
+/// Makes the names in `folder` durable. Best effort: some file systems refuse fsync on folders.
+void flushFolder(const fs::path& folder) {
+  const int fd = ::open(folder.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) return;
+  ::fsync(fd);
+  ::close(fd);
+}
+
 }  // namespace
 
 /// "<name>.tmp-<pid>-<random>", or ".objscan.tmp-<pid>-<random>" when that would pass the file
@@ -99,63 +131,24 @@ void writeFileAtomically(const fs::path& path, std::string_view bytes) {
   // A replaced file keeps its permissions; a new one gets 0666 less the umask, as open() gives.
   struct stat existing {};
   const bool replacing = ::stat(path.c_str(), &existing) == 0 && S_ISREG(existing.st_mode);
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
-  if (fd < 0) throw OutputError(path, "cannot create a file there: " + errnoText());
-  if (replacing) ::fchmod(fd, existing.st_mode & 07777);
-
-  auto fail = [&](const std::string& what) {
-    const std::string reason = what + ": " + errnoText();
-    ::close(fd);
-    ::unlink(tmp.c_str());
-    throw OutputError(path, reason);
-  };
-
-  if (!writeAll(fd, bytes)) fail("write failed");
-  if (::fsync(fd) != 0) fail("fsync failed");
-  if (::close(fd) != 0) {
-    const std::string reason = "close failed: " + errnoText();
-    ::unlink(tmp.c_str());
-    throw OutputError(path, reason);
-  }
+  writeNewFlushed(tmp, path, bytes,
+                  replacing ? std::optional<mode_t>(existing.st_mode & 07777) : std::nullopt);
   if (::rename(tmp.c_str(), path.c_str()) != 0) {
     const std::string reason = "cannot rename the finished file into place: " + errnoText();
     ::unlink(tmp.c_str());
     throw OutputError(path, reason);
   }
-  // Make the rename itself durable. Best effort: some file systems refuse fsync on directories.
-  const fs::path parent = path.has_parent_path() ? path.parent_path() : fs::path(".");
-  const int dir_fd = ::open(parent.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (dir_fd >= 0) {
-    ::fsync(dir_fd);
-    ::close(dir_fd);
-  }
+  // Make the rename itself durable.
+  flushFolder(path.has_parent_path() ? path.parent_path() : fs::path("."));
 }
 
 void writeStagedFile(const fs::path& path, std::string_view bytes) {
-  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
-  if (fd < 0) throw OutputError(path, "cannot create a file there: " + errnoText());
-  auto fail = [&](const std::string& what) {
-    const std::string reason = what + ": " + errnoText();
-    ::close(fd);
-    ::unlink(path.c_str());
-    throw OutputError(path, reason);
-  };
-  if (!writeAll(fd, bytes)) fail("write failed");
-  if (::fsync(fd) != 0) fail("fsync failed");
-  if (::close(fd) != 0) {
-    const std::string reason = "close failed: " + errnoText();
-    ::unlink(path.c_str());
-    throw OutputError(path, reason);
-  }
+  writeNewFlushed(path, path, bytes, std::nullopt);
 }
 
 void makeStagedFolderDurable(const fs::path& folder) {
-  // Its files were flushed as they were written; this makes their names durable. Best effort, as
-  // for writeFileAtomically's rename: some file systems refuse fsync on folders.
-  const int fd = ::open(folder.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (fd < 0) return;
-  ::fsync(fd);
-  ::close(fd);
+  // Its files were flushed as they were written; this makes their names durable.
+  flushFolder(folder);
 }
 
 std::string readWholeFile(const fs::path& path, std::uintmax_t max_bytes) {
