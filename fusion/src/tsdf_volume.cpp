@@ -49,6 +49,10 @@ float VolumeConfig::truncation() const {
   return truncation_m.value_or(std::max(0.03f, 3.0f * voxel_size_m));
 }
 
+float VolumeConfig::behindBand() const {
+  return std::min(behind_m.value_or(truncation()), truncation());
+}
+
 void VolumeConfig::validate() const {
   if (!(std::isfinite(voxel_size_m) && voxel_size_m >= 0.001f && voxel_size_m <= 0.5f)) {
     throw std::invalid_argument("the voxel size must be between 1 mm and 50 cm");
@@ -58,6 +62,9 @@ void VolumeConfig::validate() const {
         truncation_used <= 1.0f)) {
     throw std::invalid_argument(
         "the truncation distance must span at least 2 voxels and be at most 1 m");
+  }
+  if (behind_m && !(std::isfinite(*behind_m) && *behind_m >= voxel_size_m)) {
+    throw std::invalid_argument("the band behind a reading must span at least one voxel");
   }
   if (!(std::isfinite(max_weight) && max_weight >= 1.0f && max_weight <= 65535.0f)) {
     throw std::invalid_argument("the maximum voxel weight must be 1 to 65535 observations");
@@ -127,6 +134,7 @@ std::size_t TsdfVolume::integrate(const cv::Mat& depth_m, const cv::Mat& color_r
   const float voxel = volume.voxel_size_m;
   const float block_m = voxel * static_cast<float>(kBlockSide);
   const float trunc = volume.truncation_m;
+  const float behind = config_.behindBand();  // updated behind a reading: at most trunc
   const float fx = static_cast<float>(in.fx_px), fy = static_cast<float>(in.fy_px);
   const float cx = static_cast<float>(in.cx_px), cy = static_cast<float>(in.cy_px);
   const Eigen::Matrix3f R_WC = T_W_C.linear();
@@ -149,7 +157,7 @@ std::size_t TsdfVolume::integrate(const cv::Mat& depth_m, const cv::Mat& color_r
             const Eigen::Vector3f ray_C((static_cast<float>(u) - cx) / fx,
                                         (static_cast<float>(v) - cy) / fy, 1.0f);
             const Eigen::Vector3f dir_W = R_WC * ray_C;
-            const float z0 = std::max(z - trunc, 1e-3f), z1 = z + trunc;
+            const float z0 = std::max(z - trunc, 1e-3f), z1 = z + behind;
             // Samples half a block apart along the ray cannot step over a block.
             const int n = static_cast<int>(std::ceil((z1 - z0) * ray_C.norm() / (0.5f * block_m)));
             std::uint64_t last = ~0ULL;
@@ -253,7 +261,7 @@ std::size_t TsdfVolume::integrate(const cv::Mat& depth_m, const cv::Mat& color_r
                 const float d = depth_data[px];
                 if (!(d > 0.0f)) continue;
                 const float sdf = d - depth_C[x];
-                if (sdf < -trunc) continue;
+                if (sdf < -behind) continue;
                 PackedVoxel& vox = block.voxels[row + x];
                 const float tsdf = std::min(1.0f, sdf * inv_trunc);
                 const std::uint16_t w = vox.weight;

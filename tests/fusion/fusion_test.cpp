@@ -106,8 +106,17 @@ TEST(TsdfVolume, FrontoParallelPlaneHasExactSignedDistances) {
   const Intrinsics in = centredCamera(160, 120, 142.6);
   const Scene scene{{}, {{Eigen::Vector3f(0, 0, 1), 1.0f}}};
   VolumeConfig config;
-  TsdfVolume volume(config);
   const cv::Mat depth = renderDepth(scene, in, Pose::Identity());
+  {
+    // With a band of 2 voxels (11.7 mm) behind the reading, 2 cm behind it is never observed.
+    VolumeConfig shallow_config;
+    shallow_config.behind_m = 2.0f * shallow_config.voxel_size_m;
+    TsdfVolume shallow(shallow_config);
+    shallow.integrate(depth, {}, in, Pose::Identity());
+    EXPECT_TRUE(shallow.sdfAt(Eigen::Vector3f(0, 0, 1.004f)).has_value());
+    EXPECT_FALSE(shallow.sdfAt(Eigen::Vector3f(0, 0, 1.02f)).has_value());
+  }
+  TsdfVolume volume(config);
   volume.integrate(depth, {}, in, Pose::Identity());
   // Reading minus voxel depth is the exact distance to a fronto-parallel plane, and trilinear
   // interpolation of a linear function is exact: only float rounding remains (< 1e-5 m).
@@ -156,6 +165,9 @@ TEST(TsdfVolume, RejectsSettingsThatCannotWork) {
   VolumeConfig thin;
   thin.truncation_m = thin.voxel_size_m;  // less than 2 voxels
   EXPECT_THROW(TsdfVolume{thin}, std::invalid_argument);
+  VolumeConfig shallow;
+  shallow.behind_m = 0.5f * shallow.voxel_size_m;
+  EXPECT_THROW(TsdfVolume{shallow}, std::invalid_argument);
 }
 
 // --- Raycasting ----------------------------------------------------------------------------------
@@ -318,6 +330,44 @@ TEST(MarchingCubes, SphereSeenFromAllSidesIsClosedOutwardAndOnTheSurface) {
   const auto [lightest, heaviest] = std::minmax_element(mesh.weights.begin(), mesh.weights.end());
   EXPECT_GE(*lightest, 1.0f);
   EXPECT_LE(*heaviest, 26.0f);
+}
+
+/// A 4 mm board seen from above and from below, as a bowl's or a cup's wall is seen from inside
+/// and outside: the largest distance of its fused surface from the board, within 10 cm of its
+/// centre.
+double thinBoardError(const VolumeConfig& config) {
+  const Intrinsics in = centredCamera(160, 120, 140.0);
+  const float thickness = 0.004f;
+  const Scene scene{{}, {{Eigen::Vector3f(0, 0, 1), 0.0f}, {Eigen::Vector3f(0, 0, 1), -thickness}}};
+  TsdfVolume volume(config);
+  for (int k = 0; k < 8; ++k) {
+    const float side = k % 2 == 0 ? 1.0f : -1.0f;
+    const float a = 0.5f * static_cast<float>(k);
+    const Eigen::Vector3f eye(0.1f * std::cos(a), 0.1f * std::sin(a), 0.6f * side);
+    const Pose T = lookAt(eye, Eigen::Vector3f::Zero());
+    volume.integrate(renderDepth(scene, in, T), {}, in, T);
+  }
+  const TriangleMesh mesh = extractMesh(volume);
+  double worst = 0.0;
+  std::size_t near_centre = 0;
+  for (const Eigen::Vector3f& p : mesh.positions) {
+    if (p.head<2>().norm() > 0.1f) continue;
+    ++near_centre;
+    worst = std::max(worst, static_cast<double>(std::max({0.0f, p.z(), -thickness - p.z()})));
+  }
+  EXPECT_GT(near_centre, 100u);
+  return worst;
+}
+
+TEST(TsdfVolume, AThinWallSeenFromBothSidesStaysThin) {
+  VolumeConfig config;
+  config.voxel_size_m = 0.005f;
+  // Updated as deep as the truncation (3 cm, the default), the views from one side mark the
+  // other side's free space as solid, and the surfaces move out by several voxels.
+  EXPECT_GT(thinBoardError(config), 4.0 * config.voxel_size_m);
+  // With a band of 2 voxels, each side moves out by at most that band and half a voxel.
+  config.behind_m = 2.0f * config.voxel_size_m;
+  EXPECT_LT(thinBoardError(config), 2.5 * config.voxel_size_m);
 }
 
 TEST(MarchingCubes, VertexWeightsCountTheFramesThatSawTheSurface) {

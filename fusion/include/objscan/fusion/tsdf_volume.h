@@ -25,6 +25,14 @@ struct VolumeConfig {
   /// (KinectFusion's default, about three standard deviations of an Xtion's depth noise at 2 m),
   /// or 3 voxels when that is more. truncation() gives the value used.
   std::optional<float> truncation_m;
+  /// How far behind a reading the volume is updated (its negative side), metres, at most the
+  /// truncation distance. Nothing: as deep as the truncation, as KinectFusion does. A band that
+  /// deep fills the inside of a thin-walled object (a bowl, a cup, a mug seen from outside and
+  /// from above) with a ghost surface up to the truncation distance behind each wall: views from
+  /// outside mark the hollow as solid, views from above as free, and their average crosses zero
+  /// inside it. A band of 2 voxels keeps walls where they are, but then discovery cuts a bowl's
+  /// inside from its outside more often: docs/fusion.md, "Thin walls".
+  std::optional<float> behind_m;
   /// A voxel's weight (its number of observations) stops growing here, so the running average
   /// keeps adapting (KinectFusion caps it at 128 frames). 1 to 65535; a fraction is dropped.
   float max_weight = 128.0f;
@@ -33,6 +41,8 @@ struct VolumeConfig {
   int allocation_stride_px = 4;
   /// The truncation distance used: truncation_m, or its default for this voxel size.
   float truncation() const;
+  /// The depth of the band behind a reading that is updated: behind_m or the truncation.
+  float behindBand() const;
   /// Throws std::invalid_argument with a sentence naming the bad field.
   void validate() const;
 };
