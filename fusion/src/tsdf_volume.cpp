@@ -43,14 +43,22 @@ void checkImages(const cv::Mat& depth_m, const cv::Mat& color_rgb, const Intrins
   }
 }
 
+/// Three standard deviations of a structured-light sensor's depth noise over z^2, per metre
+/// (Khoshelham and Elberink 2012: sigma = 1.425e-3 z^2 m for the Kinect v1).
+constexpr float kNoiseSigmasPerM2 = 3.0f * 1.425e-3f;
+
 }  // namespace
 
 float VolumeConfig::truncation() const {
   return truncation_m.value_or(std::max(0.03f, 3.0f * voxel_size_m));
 }
 
-float VolumeConfig::behindBand() const {
-  return std::min(behind_m.value_or(truncation()), truncation());
+float VolumeConfig::behindBand(float depth_m) const {
+  if (behind_m) return std::min(*behind_m, truncation());
+  if (behind_follows_noise) {
+    return std::clamp(kNoiseSigmasPerM2 * depth_m * depth_m, 2.0f * voxel_size_m, truncation());
+  }
+  return truncation();
 }
 
 void VolumeConfig::validate() const {
@@ -134,7 +142,10 @@ std::size_t TsdfVolume::integrate(const cv::Mat& depth_m, const cv::Mat& color_r
   const float voxel = volume.voxel_size_m;
   const float block_m = voxel * static_cast<float>(kBlockSide);
   const float trunc = volume.truncation_m;
-  const float behind = config_.behindBand();  // updated behind a reading: at most trunc
+  // How deep behind each reading to update (at most trunc): fixed, or per reading's depth.
+  const bool behind_varies = !config_.behind_m && config_.behind_follows_noise;
+  const float behind = config_.behindBand(0.0f);
+  const float min_behind = 2.0f * voxel;
   const float fx = static_cast<float>(in.fx_px), fy = static_cast<float>(in.fy_px);
   const float cx = static_cast<float>(in.cx_px), cy = static_cast<float>(in.cy_px);
   const Eigen::Matrix3f R_WC = T_W_C.linear();
@@ -157,7 +168,8 @@ std::size_t TsdfVolume::integrate(const cv::Mat& depth_m, const cv::Mat& color_r
             const Eigen::Vector3f ray_C((static_cast<float>(u) - cx) / fx,
                                         (static_cast<float>(v) - cy) / fy, 1.0f);
             const Eigen::Vector3f dir_W = R_WC * ray_C;
-            const float z0 = std::max(z - trunc, 1e-3f), z1 = z + behind;
+            const float z0 = std::max(z - trunc, 1e-3f),
+                        z1 = z + (behind_varies ? config_.behindBand(z) : behind);
             // Samples half a block apart along the ray cannot step over a block.
             const int n = static_cast<int>(std::ceil((z1 - z0) * ray_C.norm() / (0.5f * block_m)));
             std::uint64_t last = ~0ULL;
@@ -261,7 +273,10 @@ std::size_t TsdfVolume::integrate(const cv::Mat& depth_m, const cv::Mat& color_r
                 const float d = depth_data[px];
                 if (!(d > 0.0f)) continue;
                 const float sdf = d - depth_C[x];
-                if (sdf < -behind) continue;
+                if (sdf < -(behind_varies ? std::clamp(kNoiseSigmasPerM2 * d * d, min_behind, trunc)
+                                          : behind)) {
+                  continue;
+                }
                 PackedVoxel& vox = block.voxels[row + x];
                 const float tsdf = std::min(1.0f, sdf * inv_trunc);
                 const std::uint16_t w = vox.weight;

@@ -368,6 +368,14 @@ TEST(TsdfVolume, AThinWallSeenFromBothSidesStaysThin) {
   // With a band of 2 voxels, each side moves out by at most that band and half a voxel.
   config.behind_m = 2.0f * config.voxel_size_m;
   EXPECT_LT(thinBoardError(config), 2.5 * config.voxel_size_m);
+  // The band that follows the noise is 2 voxels at 0.6 m too (three sigmas are 1.5 mm there).
+  config.behind_m.reset();
+  config.behind_follows_noise = true;
+  EXPECT_FLOAT_EQ(config.behindBand(0.6f), 2.0f * config.voxel_size_m);
+  EXPECT_LT(thinBoardError(config), 2.5 * config.voxel_size_m);
+  // It grows as the depth squared and stops at the truncation: 3 sigmas at 2.5 m are 2.7 cm.
+  EXPECT_NEAR(config.behindBand(2.5f), 3.0f * 1.425e-3f * 6.25f, 1e-6f);
+  EXPECT_FLOAT_EQ(config.behindBand(4.0f), config.truncation());
 }
 
 TEST(MarchingCubes, VertexWeightsCountTheFramesThatSawTheSurface) {

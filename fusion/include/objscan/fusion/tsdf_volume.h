@@ -33,6 +33,10 @@ struct VolumeConfig {
   /// inside it. A band of 2 voxels keeps walls where they are, but then discovery cuts a bowl's
   /// inside from its outside more often: docs/fusion.md, "Thin walls".
   std::optional<float> behind_m;
+  /// Without behind_m: update behind a reading as deep as three standard deviations of a
+  /// structured-light sensor's depth noise at its depth (1.425e-3 z^2 m, Khoshelham and
+  /// Elberink 2012), at least 2 voxels and at most the truncation. Off: as deep as the truncation.
+  bool behind_follows_noise = false;
   /// A voxel's weight (its number of observations) stops growing here, so the running average
   /// keeps adapting (KinectFusion caps it at 128 frames). 1 to 65535; a fraction is dropped.
   float max_weight = 128.0f;
@@ -41,8 +45,8 @@ struct VolumeConfig {
   int allocation_stride_px = 4;
   /// The truncation distance used: truncation_m, or its default for this voxel size.
   float truncation() const;
-  /// The depth of the band behind a reading that is updated: behind_m or the truncation.
-  float behindBand() const;
+  /// The depth of the band behind a reading at `depth_m` that is updated.
+  float behindBand(float depth_m) const;
   /// Throws std::invalid_argument with a sentence naming the bad field.
   void validate() const;
 };
