@@ -216,6 +216,11 @@ TEST(FuseCli, BadSettingsAndSourcesAreOneErrorLine) {
                      "voxel size");
   expectOneErrorLine(objscan({"fuse", scene.string(), "--out", out, "--truncation", "0.001"}), 2,
                      "truncation");
+  expectOneErrorLine(objscan({"fuse", scene.string(), "--out", out, "--behind", "0.001"}), 2,
+                     "band behind a reading");
+  expectOneErrorLine(
+      objscan({"fuse", scene.string(), "--out", out, "--behind", "0.01", "--behind-noise"}), 2,
+      "--behind-noise");
   expectOneErrorLine(objscan({"fuse", (dir / "missing").string(), "--out", out}), 2, "missing");
   expectOneErrorLine(
       objscan({"fuse", scene.string(), "--out", out, "--poses", (dir / "none.txt").string()}), 2,
