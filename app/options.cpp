@@ -237,14 +237,18 @@ void addFusionOptions(CLI::App* sub, pipeline::FuseOptions& o) {
       ->default_str(exactText(o.config.volume.voxel_size_m));
   sub->add_option("--truncation", o.config.volume.truncation_m,
                   "Truncation distance in metres (default: 0.03, or 3 voxels if larger)");
-  CLI::Option* behind =
-      sub->add_option("--behind", o.config.volume.behind_m,
-                      "Update the volume only this far behind each reading, metres (default: the "
-                      "truncation; 2 voxels keep thin walls thin)");
+  CLI::Option* behind = sub->add_option(
+      "--behind", o.config.volume.behind_m,
+      "Update the volume only this far behind each reading, metres, 2 voxels to the truncation "
+      "(default: the truncation)");
   sub->add_flag("--behind-noise", o.config.volume.behind_follows_noise,
-                "Update the volume behind each reading as deep as three sigmas of the sensor's "
-                "noise at its depth (2 voxels to the truncation) instead")
+                "Update the volume behind each reading as deep as three sigmas of a Kinect-type "
+                "sensor's noise at its depth (2 voxels to the truncation)")
       ->excludes(behind);
+  sub->add_flag_callback(
+      "--no-carving", [&o] { o.config.volume.carve_free_space = false; },
+      "Let readings from deep behind a surface outvote free space seen, as KinectFusion's "
+      "averaging does (fills thin-walled hollows; see docs/fusion.md, Thin walls)");
   sub->add_option("--min-depth", o.config.preprocess.min_depth_m,
                   "Ignore depth nearer than this (m)")
       ->default_str(exactText(o.config.preprocess.min_depth_m));

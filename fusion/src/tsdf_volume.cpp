@@ -54,7 +54,7 @@ float VolumeConfig::truncation() const {
 }
 
 float VolumeConfig::behindBand(float depth_m) const {
-  if (behind_m) return std::min(*behind_m, truncation());
+  if (behind_m) return *behind_m;
   if (behind_follows_noise) {
     return std::clamp(kNoiseSigmasPerM2 * depth_m * depth_m, 2.0f * voxel_size_m, truncation());
   }
@@ -71,8 +71,10 @@ void VolumeConfig::validate() const {
     throw std::invalid_argument(
         "the truncation distance must span at least 2 voxels and be at most 1 m");
   }
-  if (behind_m && !(std::isfinite(*behind_m) && *behind_m >= voxel_size_m)) {
-    throw std::invalid_argument("the band behind a reading must span at least one voxel");
+  if (behind_m && !(std::isfinite(*behind_m) && *behind_m >= 2.0f * voxel_size_m &&
+                    *behind_m <= truncation_used)) {
+    throw std::invalid_argument(
+        "the band behind a reading must span at least 2 voxels and at most the truncation");
   }
   if (!(std::isfinite(max_weight) && max_weight >= 1.0f && max_weight <= 65535.0f)) {
     throw std::invalid_argument("the maximum voxel weight must be 1 to 65535 observations");
@@ -146,6 +148,8 @@ std::size_t TsdfVolume::integrate(const cv::Mat& depth_m, const cv::Mat& color_r
   const bool behind_varies = !config_.behind_m && config_.behind_follows_noise;
   const float behind = config_.behindBand(0.0f);
   const float min_behind = 2.0f * voxel;
+  const bool carve = config_.carve_free_space;
+  const float min_behind_t = min_behind * (1.0f / trunc);
   const float fx = static_cast<float>(in.fx_px), fy = static_cast<float>(in.fy_px);
   const float cx = static_cast<float>(in.cx_px), cy = static_cast<float>(in.cy_px);
   const Eigen::Matrix3f R_WC = T_W_C.linear();
@@ -279,9 +283,22 @@ std::size_t TsdfVolume::integrate(const cv::Mat& depth_m, const cv::Mat& color_r
                 }
                 PackedVoxel& vox = block.voxels[row + x];
                 const float tsdf = std::min(1.0f, sdf * inv_trunc);
-                const std::uint16_t w = vox.weight;
-                vox.tsdf_q = PackedVoxel::quantize(
-                    (vox.tsdf() * static_cast<float>(w) + tsdf) * inv_count[w]);
+                std::uint16_t w = vox.weight;
+                const float current = vox.tsdf();
+                // (Both cases need the reading and the voxel on either side, each beyond the band
+                // of at least 2 voxels: most updates differ from the voxel by less.)
+                if (carve && w != 0 && std::abs(tsdf - current) > 2.0f * min_behind_t) {
+                  // Free space seen beats solid inferred from deep behind another surface: a
+                  // reading beyond the noise's band behind its surface does not move a voxel
+                  // that averages clearly in front of one, and one clearly in front of its
+                  // surface replaces a voxel that only such readings made solid. (A band past
+                  // the truncation, 1 in these units, never holds: no clamp needed.)
+                  const float noise = std::max(min_behind, kNoiseSigmasPerM2 * d * d) * inv_trunc;
+                  if (tsdf < -noise && current > noise) continue;
+                  if (tsdf > noise && current < -noise) w = 0;
+                }
+                vox.tsdf_q =
+                    PackedVoxel::quantize((current * static_cast<float>(w) + tsdf) * inv_count[w]);
                 vox.weight = static_cast<std::uint16_t>(std::min<int>(w + 1, max_weight));
                 if (has_color && sdf < trunc) {
                   VoxelColor& col = block.colors[row + x];

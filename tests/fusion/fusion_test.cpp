@@ -116,6 +116,21 @@ TEST(TsdfVolume, FrontoParallelPlaneHasExactSignedDistances) {
     EXPECT_TRUE(shallow.sdfAt(Eigen::Vector3f(0, 0, 1.004f)).has_value());
     EXPECT_FALSE(shallow.sdfAt(Eigen::Vector3f(0, 0, 1.02f)).has_value());
   }
+  {
+    // The band that follows the noise at 2.5 m reaches 2.67 cm behind the reading, not the 3 cm
+    // of the truncation: between 2.0 and 2.8 cm behind this plane (voxels at 2.5195 and
+    // 2.5254 m), the averaging observes both corners and the noise's band only the nearer.
+    const Scene far{{}, {{Eigen::Vector3f(0, 0, 1), 2.497f}}};
+    const Eigen::Vector3f between(0, 0, 2.5244f);
+    for (const bool noisy : {false, true}) {
+      VolumeConfig c;
+      c.behind_follows_noise = noisy;
+      TsdfVolume volume(c);
+      volume.integrate(renderDepth(far, in, Pose::Identity()), {}, in, Pose::Identity());
+      EXPECT_EQ(volume.sdfAt(between).has_value(), !noisy) << noisy;
+      EXPECT_TRUE(volume.sdfAt(Eigen::Vector3f(0, 0, 2.515f)).has_value()) << noisy;
+    }
+  }
   TsdfVolume volume(config);
   volume.integrate(depth, {}, in, Pose::Identity());
   // Reading minus voxel depth is the exact distance to a fronto-parallel plane, and trilinear
@@ -166,8 +181,11 @@ TEST(TsdfVolume, RejectsSettingsThatCannotWork) {
   thin.truncation_m = thin.voxel_size_m;  // less than 2 voxels
   EXPECT_THROW(TsdfVolume{thin}, std::invalid_argument);
   VolumeConfig shallow;
-  shallow.behind_m = 0.5f * shallow.voxel_size_m;
+  shallow.behind_m = 1.5f * shallow.voxel_size_m;  // less than 2 voxels
   EXPECT_THROW(TsdfVolume{shallow}, std::invalid_argument);
+  VolumeConfig deep;
+  deep.behind_m = deep.truncation() + 0.01f;  // more than the truncation
+  EXPECT_THROW(TsdfVolume{deep}, std::invalid_argument);
 }
 
 // --- Raycasting ----------------------------------------------------------------------------------
@@ -362,13 +380,15 @@ double thinBoardError(const VolumeConfig& config) {
 TEST(TsdfVolume, AThinWallSeenFromBothSidesStaysThin) {
   VolumeConfig config;
   config.voxel_size_m = 0.005f;
-  // Updated as deep as the truncation (3 cm, the default), the views from one side mark the
-  // other side's free space as solid, and the surfaces move out by several voxels.
+  // Averaged as KinectFusion does, down to the truncation (3 cm) behind every reading, the views
+  // from one side mark the other side's free space as solid: the surfaces move out by several
+  // voxels.
+  config.carve_free_space = false;
   EXPECT_GT(thinBoardError(config), 4.0 * config.voxel_size_m);
-  // With a band of 2 voxels, each side moves out by at most that band and half a voxel.
+  // Updated only 2 voxels behind each reading, each side moves out by at most that band and half
+  // a voxel; the band that follows the noise is 2 voxels at 0.6 m too (three sigmas: 1.5 mm).
   config.behind_m = 2.0f * config.voxel_size_m;
   EXPECT_LT(thinBoardError(config), 2.5 * config.voxel_size_m);
-  // The band that follows the noise is 2 voxels at 0.6 m too (three sigmas are 1.5 mm there).
   config.behind_m.reset();
   config.behind_follows_noise = true;
   EXPECT_FLOAT_EQ(config.behindBand(0.6f), 2.0f * config.voxel_size_m);
@@ -376,6 +396,36 @@ TEST(TsdfVolume, AThinWallSeenFromBothSidesStaysThin) {
   // It grows as the depth squared and stops at the truncation: 3 sigmas at 2.5 m are 2.7 cm.
   EXPECT_NEAR(config.behindBand(2.5f), 3.0f * 1.425e-3f * 6.25f, 1e-6f);
   EXPECT_FLOAT_EQ(config.behindBand(4.0f), config.truncation());
+  // By default, free space seen beats what readings from beyond the noise's band behind another
+  // surface say: the full band, and the board as thin as with 2 voxels.
+  config.behind_follows_noise = false;
+  config.carve_free_space = true;
+  EXPECT_LT(thinBoardError(config), 2.5 * config.voxel_size_m);
+}
+
+TEST(TsdfVolume, CarvingLeavesWhatNoViewSawAsFreeAsItWas) {
+  // A ball seen from one side only: nothing saw its inside as free, so carving changes nothing,
+  // and its half-seen back stays closed as the averaging leaves it.
+  const Intrinsics in = centredCamera(160, 120, 140.0);
+  const Sphere sphere{Eigen::Vector3f(0.0f, 0.0f, 0.0f), 0.1f};
+  const Scene scene{{sphere}, {}};
+  const auto fuse = [&](bool carve) {
+    VolumeConfig config;
+    config.voxel_size_m = 0.005f;
+    config.carve_free_space = carve;
+    TsdfVolume volume(config);
+    for (int k = 0; k < 5; ++k) {
+      const float a = 0.4f * static_cast<float>(k - 2);
+      const Pose T =
+          lookAt(Eigen::Vector3f(0.6f * std::sin(a), 0.1f, -0.6f * std::cos(a)), sphere.centre);
+      volume.integrate(renderDepth(scene, in, T), {}, in, T);
+    }
+    return extractMesh(volume);
+  };
+  const TriangleMesh carved = fuse(true), averaged = fuse(false);
+  ASSERT_FALSE(carved.positions.empty());
+  EXPECT_EQ(carved.positions, averaged.positions);
+  EXPECT_EQ(carved.triangles, averaged.triangles);
 }
 
 TEST(MarchingCubes, VertexWeightsCountTheFramesThatSawTheSurface) {

@@ -22,21 +22,25 @@ struct VolumeConfig {
   /// density keeps its size constants (m_size = 500 vertices) meaningful.
   float voxel_size_m = 3.0f / 512.0f;
   /// Signed distances are truncated to +-this; it must span at least 2 voxels. Nothing: 3 cm
-  /// (KinectFusion's default, about three standard deviations of an Xtion's depth noise at 2 m),
-  /// or 3 voxels when that is more. truncation() gives the value used.
+  /// (KinectFusion's default; three standard deviations of a Kinect-type sensor's depth noise at
+  /// 2.65 m), or 3 voxels when that is more. truncation() gives the value used.
   std::optional<float> truncation_m;
-  /// How far behind a reading the volume is updated (its negative side), metres, at most the
-  /// truncation distance. Nothing: as deep as the truncation, as KinectFusion does. A band that
-  /// deep fills the inside of a thin-walled object (a bowl, a cup, a mug seen from outside and
-  /// from above) with a ghost surface up to the truncation distance behind each wall: views from
-  /// outside mark the hollow as solid, views from above as free, and their average crosses zero
-  /// inside it. A band of 2 voxels keeps walls where they are, but then discovery cuts a bowl's
-  /// inside from its outside more often: docs/fusion.md, "Thin walls".
+  /// How far behind a reading the volume is updated (its negative side), metres: 2 voxels to the
+  /// truncation distance. Nothing: as deep as the truncation, as KinectFusion does.
   std::optional<float> behind_m;
   /// Without behind_m: update behind a reading as deep as three standard deviations of a
-  /// structured-light sensor's depth noise at its depth (1.425e-3 z^2 m, Khoshelham and
-  /// Elberink 2012), at least 2 voxels and at most the truncation. Off: as deep as the truncation.
+  /// structured-light sensor's depth noise at its depth (1.425e-3 z^2 m, the Kinect v1's,
+  /// Khoshelham and Elberink 2012), at least 2 voxels and at most the truncation.
   bool behind_follows_noise = false;
+  /// Free space seen beats solid inferred. A reading marks the voxels down to the truncation
+  /// distance behind its surface as solid; beyond the noise's band (three sigmas as above, at
+  /// least 2 voxels) that is a guess. With this on, such a reading does not move a voxel that
+  /// averages clearly in front of a surface (by more than the band), and a reading that sees a
+  /// voxel clearly in front of its surface replaces one that only such guesses made solid. So
+  /// the hollow of a bowl or a cup, seen from outside and from above, stays hollow instead of
+  /// holding a ghost wall, and a small object grows no tail of solid behind it; what no view saw
+  /// as free (the back of a half-seen object) stays closed. docs/fusion.md, "Thin walls".
+  bool carve_free_space = true;
   /// A voxel's weight (its number of observations) stops growing here, so the running average
   /// keeps adapting (KinectFusion caps it at 128 frames). 1 to 65535; a fraction is dropped.
   float max_weight = 128.0f;
