@@ -245,10 +245,9 @@ void addFusionOptions(CLI::App* sub, pipeline::FuseOptions& o) {
                 "Update the volume behind each reading as deep as three sigmas of a Kinect-type "
                 "sensor's noise at its depth (2 voxels to the truncation)")
       ->excludes(behind);
-  sub->add_flag_callback(
-      "--no-carving", [&o] { o.config.volume.carve_free_space = false; },
-      "Let readings from deep behind a surface outvote free space seen, as KinectFusion's "
-      "averaging does (fills thin-walled hollows; see docs/fusion.md, Thin walls)");
+  sub->add_flag("--carve", o.config.volume.carve_free_space,
+                "Let free space a reading sees beat solid guessed from deep behind another surface "
+                "(keeps thin-walled hollows hollow; see docs/fusion.md, Thin walls)");
   sub->add_option("--min-depth", o.config.preprocess.min_depth_m,
                   "Ignore depth nearer than this (m)")
       ->default_str(exactText(o.config.preprocess.min_depth_m));

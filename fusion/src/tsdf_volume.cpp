@@ -290,9 +290,10 @@ std::size_t TsdfVolume::integrate(const cv::Mat& depth_m, const cv::Mat& color_r
                 if (carve && w != 0 && std::abs(tsdf - current) > 2.0f * min_behind_t) {
                   // Free space seen beats solid inferred from deep behind another surface: a
                   // reading beyond the noise's band behind its surface does not move a voxel
-                  // that averages clearly in front of one, and one clearly in front of its
-                  // surface replaces a voxel that only such readings made solid. (A band past
-                  // the truncation, 1 in these units, never holds: no clamp needed.)
+                  // that averages more than the band in front of one, and one more than the band
+                  // in front of its surface replaces a voxel that averages more than the band
+                  // behind one (VolumeConfig::carve_free_space). A band past the truncation, 1 in
+                  // these units, never holds: no clamp needed.
                   const float noise = std::max(min_behind, kNoiseSigmasPerM2 * d * d) * inv_trunc;
                   if (tsdf < -noise && current > noise) continue;
                   if (tsdf > noise && current < -noise) w = 0;

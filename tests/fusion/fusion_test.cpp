@@ -118,8 +118,8 @@ TEST(TsdfVolume, FrontoParallelPlaneHasExactSignedDistances) {
   }
   {
     // The band that follows the noise at 2.5 m reaches 2.67 cm behind the reading, not the 3 cm
-    // of the truncation: between 2.0 and 2.8 cm behind this plane (voxels at 2.5195 and
-    // 2.5254 m), the averaging observes both corners and the noise's band only the nearer.
+    // of the truncation: between the voxels 2.25 and 2.84 cm behind this plane (at 2.5195 and
+    // 2.5254 m), the full band observes both corners and the noise's band only the nearer.
     const Scene far{{}, {{Eigen::Vector3f(0, 0, 1), 2.497f}}};
     const Eigen::Vector3f between(0, 0, 2.5244f);
     for (const bool noisy : {false, true}) {
@@ -380,9 +380,9 @@ double thinBoardError(const VolumeConfig& config) {
 TEST(TsdfVolume, AThinWallSeenFromBothSidesStaysThin) {
   VolumeConfig config;
   config.voxel_size_m = 0.005f;
-  // Averaged as KinectFusion does, down to the truncation (3 cm) behind every reading, the views
-  // from one side mark the other side's free space as solid: the surfaces move out by several
-  // voxels.
+  // Averaged as KinectFusion does (the default), down to the truncation (3 cm) behind every
+  // reading, the views from one side mark the other side's free space as solid: the surfaces move
+  // out by several voxels.
   config.carve_free_space = false;
   EXPECT_GT(thinBoardError(config), 4.0 * config.voxel_size_m);
   // Updated only 2 voxels behind each reading, each side moves out by at most that band and half
@@ -396,36 +396,64 @@ TEST(TsdfVolume, AThinWallSeenFromBothSidesStaysThin) {
   // It grows as the depth squared and stops at the truncation: 3 sigmas at 2.5 m are 2.7 cm.
   EXPECT_NEAR(config.behindBand(2.5f), 3.0f * 1.425e-3f * 6.25f, 1e-6f);
   EXPECT_FLOAT_EQ(config.behindBand(4.0f), config.truncation());
-  // By default, free space seen beats what readings from beyond the noise's band behind another
+  // With carving, free space seen beats what readings from beyond the noise's band behind another
   // surface say: the full band, and the board as thin as with 2 voxels.
   config.behind_follows_noise = false;
   config.carve_free_space = true;
   EXPECT_LT(thinBoardError(config), 2.5 * config.voxel_size_m);
 }
 
-TEST(TsdfVolume, CarvingLeavesWhatNoViewSawAsFreeAsItWas) {
-  // A ball seen from one side only: nothing saw its inside as free, so carving changes nothing,
-  // and its half-seen back stays closed as the averaging leaves it.
+TEST(TsdfVolume, CarvingKeepsABallOnATableWholeAndOnItsSurface) {
+  // A 3 cm ball on a table, seen from eight sides as a scan circles it. Pixels beside its
+  // silhouette see the table behind it, and voxels just inside the silhouette project onto them,
+  // so carving replaces some of those: the ball keeps 92 % of the averaged ball's vertices near
+  // its sphere (a test of the pixel's neighbours kept 96 %, but lost two objects of the real
+  // desk; docs/fusion.md, "Thin walls"). It must stay as close to the truth as the averaging
+  // leaves it, with no more holes, and keep at least 90 % of those vertices.
   const Intrinsics in = centredCamera(160, 120, 140.0);
-  const Sphere sphere{Eigen::Vector3f(0.0f, 0.0f, 0.0f), 0.1f};
-  const Scene scene{{sphere}, {}};
+  const Sphere ball{Eigen::Vector3f(0.0f, 0.0f, 0.03f), 0.03f};
+  const Scene scene{{ball}, {{Eigen::Vector3f(0, 0, 1), 0.0f}}};
+  struct Fused {
+    std::size_t near_ball = 0, open_edges = 0;
+    double mean_error = 0.0;
+  };
   const auto fuse = [&](bool carve) {
     VolumeConfig config;
     config.voxel_size_m = 0.005f;
     config.carve_free_space = carve;
     TsdfVolume volume(config);
-    for (int k = 0; k < 5; ++k) {
-      const float a = 0.4f * static_cast<float>(k - 2);
-      const Pose T =
-          lookAt(Eigen::Vector3f(0.6f * std::sin(a), 0.1f, -0.6f * std::cos(a)), sphere.centre);
+    for (int k = 0; k < 8; ++k) {
+      const float a = 0.785398f * static_cast<float>(k);
+      const Eigen::Vector3f eye(0.5f * std::cos(a), 0.5f * std::sin(a), 0.35f);
+      const Pose T = lookAt(eye, ball.centre, Eigen::Vector3f(0, 0, -1));
       volume.integrate(renderDepth(scene, in, T), {}, in, T);
     }
-    return extractMesh(volume);
+    const TriangleMesh mesh = extractMesh(volume);
+    Fused f;
+    // The ball's vertices (within 2 voxels of its sphere, off the table) and their distance to it.
+    for (const Eigen::Vector3f& p : mesh.positions) {
+      const float off = std::abs((p - ball.centre).norm() - ball.radius);
+      if (off < 2.0f * config.voxel_size_m && p.z() > config.voxel_size_m) {
+        ++f.near_ball;
+        f.mean_error += off;
+      }
+    }
+    f.mean_error /= static_cast<double>(std::max<std::size_t>(f.near_ball, 1));
+    // Edges of a single triangle within 5 cm of the ball: the rims of holes.
+    std::map<std::pair<int, int>, int> edges;
+    for (const Eigen::Vector3i& t : mesh.triangles) {
+      if ((mesh.positions[static_cast<std::size_t>(t[0])] - ball.centre).norm() > 0.05f) continue;
+      for (int k = 0; k < 3; ++k)
+        ++edges[{std::min(t[k], t[(k + 1) % 3]), std::max(t[k], t[(k + 1) % 3])}];
+    }
+    for (const auto& [edge, count] : edges) f.open_edges += count == 1 ? 1 : 0;
+    return f;
   };
-  const TriangleMesh carved = fuse(true), averaged = fuse(false);
-  ASSERT_FALSE(carved.positions.empty());
-  EXPECT_EQ(carved.positions, averaged.positions);
-  EXPECT_EQ(carved.triangles, averaged.triangles);
+  const Fused averaged = fuse(false), carved = fuse(true);
+  ASSERT_GT(averaged.near_ball, 300u);
+  EXPECT_GE(static_cast<double>(carved.near_ball), 0.9 * static_cast<double>(averaged.near_ball));
+  EXPECT_LE(carved.mean_error, averaged.mean_error + 0.02 * 0.005);
+  EXPECT_LE(carved.open_edges, averaged.open_edges);
 }
 
 TEST(MarchingCubes, VertexWeightsCountTheFramesThatSawTheSurface) {
