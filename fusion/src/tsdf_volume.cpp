@@ -47,6 +47,11 @@ void checkImages(const cv::Mat& depth_m, const cv::Mat& color_rgb, const Intrins
 /// (Khoshelham and Elberink 2012: sigma = 1.425e-3 z^2 m for the Kinect v1).
 constexpr float kNoiseSigmasPerM2 = 3.0f * 1.425e-3f;
 
+/// The noise's band behind a reading at depth `d`: its three sigmas, at least `min_band`.
+inline float noiseBand(float d, float min_band) {
+  return std::max(min_band, kNoiseSigmasPerM2 * d * d);
+}
+
 }  // namespace
 
 float VolumeConfig::truncation() const {
@@ -55,9 +60,7 @@ float VolumeConfig::truncation() const {
 
 float VolumeConfig::behindBand(float depth_m) const {
   if (behind_m) return *behind_m;
-  if (behind_follows_noise) {
-    return std::clamp(kNoiseSigmasPerM2 * depth_m * depth_m, 2.0f * voxel_size_m, truncation());
-  }
+  if (behind_follows_noise) return std::min(noiseBand(depth_m, 2.0f * voxel_size_m), truncation());
   return truncation();
 }
 
@@ -277,8 +280,7 @@ std::size_t TsdfVolume::integrate(const cv::Mat& depth_m, const cv::Mat& color_r
                 const float d = depth_data[px];
                 if (!(d > 0.0f)) continue;
                 const float sdf = d - depth_C[x];
-                if (sdf < -(behind_varies ? std::clamp(kNoiseSigmasPerM2 * d * d, min_behind, trunc)
-                                          : behind)) {
+                if (sdf < -(behind_varies ? std::min(noiseBand(d, min_behind), trunc) : behind)) {
                   continue;
                 }
                 PackedVoxel& vox = block.voxels[row + x];
@@ -294,7 +296,7 @@ std::size_t TsdfVolume::integrate(const cv::Mat& depth_m, const cv::Mat& color_r
                   // in front of its surface replaces a voxel that averages more than the band
                   // behind one (VolumeConfig::carve_free_space). A band past the truncation, 1 in
                   // these units, never holds: no clamp needed.
-                  const float noise = std::max(min_behind, kNoiseSigmasPerM2 * d * d) * inv_trunc;
+                  const float noise = noiseBand(d, min_behind) * inv_trunc;
                   if (tsdf < -noise && current > noise) continue;
                   if (tsdf > noise && current < -noise) w = 0;
                 }
