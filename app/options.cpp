@@ -245,9 +245,16 @@ void addFusionOptions(CLI::App* sub, pipeline::FuseOptions& o) {
                 "Update the volume behind each reading as deep as three sigmas of a Kinect-type "
                 "sensor's noise at its depth (2 voxels to the truncation)")
       ->excludes(behind);
-  sub->add_flag("--carve", o.config.volume.carve_free_space,
-                "Let free space a reading sees beat solid guessed from deep behind another surface "
-                "(keeps thin-walled hollows hollow; see docs/fusion.md, Thin walls)");
+  bool& carve = o.config.volume.carve_free_space;
+  CLI::Option* no_carve = sub->add_flag_callback(
+      "--no-carve", [&carve] { carve = false; },
+      "Average every reading as KinectFusion does, instead of letting free space a reading sees "
+      "beat solid guessed from deep behind another surface (the default, which keeps "
+      "thin-walled hollows hollow; see docs/fusion.md, Thin walls)");
+  sub->add_flag_callback(
+         "--carve", [&carve] { carve = true; },
+         "Carve (the default; named by settings files written when it was not)")
+      ->excludes(no_carve);
   sub->add_option("--min-depth", o.config.preprocess.min_depth_m,
                   "Ignore depth nearer than this (m)")
       ->default_str(exactText(o.config.preprocess.min_depth_m));

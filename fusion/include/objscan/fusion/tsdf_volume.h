@@ -32,18 +32,18 @@ struct VolumeConfig {
   /// structured-light sensor's depth noise at its depth (1.425e-3 z^2 m, the Kinect v1's,
   /// Khoshelham and Elberink 2012), at least 2 voxels and at most the truncation.
   bool behind_follows_noise = false;
-  /// Free space seen beats solid inferred (off by default). A reading marks the voxels down to
-  /// the truncation distance behind its surface as solid; beyond the noise's band (three sigmas
-  /// as above, at least 2 voxels) that is a guess. With this on, such a reading does not move a
+  /// Free space seen beats solid inferred (the default). A reading marks the voxels down to the
+  /// truncation distance behind its surface as solid; beyond the noise's band (three sigmas as
+  /// above, at least 2 voxels) that is a guess. With this on, such a reading does not move a
   /// voxel that averages more than the band in front of a surface, and a reading that sees a voxel
   /// more than the band in front of its surface replaces a voxel that averages more than the band
   /// behind one (its weight starts again). The hollow of a bowl or a cup seen from outside and
   /// from above then stays hollow instead of holding a ghost wall, and a small object grows no
   /// tail of solid behind it; but a pixel beside a silhouette, or a frame tracked more than the
-  /// band off, can carve into a surface the other frames saw, and on short scans it lost objects.
-  /// Where the band reaches the truncation (readings beyond 2.65 m at 3 cm) it never acts.
-  /// docs/fusion.md, "Thin walls".
-  bool carve_free_space = false;
+  /// band off, can carve into a surface the other frames saw. Off, the volume averages every
+  /// reading as KinectFusion does. Where the band reaches the truncation (readings beyond 2.65 m
+  /// at 3 cm) it never acts. docs/fusion.md, "Thin walls".
+  bool carve_free_space = true;
   /// A voxel's weight (its number of observations) stops growing here, so the running average
   /// keeps adapting (KinectFusion caps it at 128 frames). 1 to 65535; a fraction is dropped.
   float max_weight = 128.0f;
