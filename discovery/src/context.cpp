@@ -340,6 +340,75 @@ void shareOfStoreys(const TriangleMesh& mesh, const MeshGraph& graph,
       });
 }
 
+/// How high over a candidate's top surface floating over it counts (SegmentContext::covered_share):
+/// a plant's leaves hang over its pot up to a few tens of centimetres.
+constexpr float kCoverHeightM = 0.3f;
+/// The ball searched holds that cylinder with this to spare (a support's own surface bends).
+constexpr float kCoverMarginM = 0.01f;
+
+/// SegmentContext::covered_share of each candidate that stands on a support (ContextConfig::
+/// judge_cover): the vertices of the regions off the supports that touch none (`region`: the
+/// connected regions of the vertices off them), lying over its top by at most kCoverHeightM and
+/// no further from its middle along the plane it stands on than its own farthest vertex.
+void measureCover(const TriangleMesh& mesh, const MeshGraph& graph, const Supports& supports,
+                  const std::vector<std::int32_t>& region, const std::vector<Segment>& segments,
+                  const std::vector<UpPlane>& planes, const std::vector<Lowest>& lowest,
+                  std::vector<SegmentContext>& out) {
+  const std::size_t n = mesh.positions.size();
+  std::vector<std::uint8_t> touches(n, 0);  // per region
+  for (const MeshEdge& e : graph.edges) {
+    const std::size_t a = static_cast<std::size_t>(e.a), b = static_cast<std::size_t>(e.b);
+    if (supports.on_support[a] != supports.on_support[b]) {
+      touches[static_cast<std::size_t>(region[supports.on_support[a] ? b : a])] = 1;
+    }
+  }
+  std::vector<Eigen::Vector3f> floating;
+  for (std::size_t v = 0; v < n; ++v) {
+    if (!supports.on_support[v] && !touches[static_cast<std::size_t>(region[v])]) {
+      floating.push_back(mesh.positions[v]);
+    }
+  }
+  if (floating.empty()) {
+    for (SegmentContext& c : out) {
+      if (c.footing == Footing::kSupport) c.covered_share = 0.0;
+    }
+    return;
+  }
+  const PointIndex index(floating);
+  tbb::parallel_for(
+      tbb::blocked_range<std::size_t>(0, segments.size()),
+      [&](const tbb::blocked_range<std::size_t>& range) {
+        std::vector<std::pair<std::uint32_t, float>> found;
+        for (std::size_t i = range.begin(); i < range.end(); ++i) {
+          SegmentContext& c = out[i];
+          if (c.footing != Footing::kSupport || lowest[i].plane < 0) continue;
+          const UpPlane& plane = planes[static_cast<std::size_t>(lowest[i].plane)];
+          const std::vector<std::int32_t>& vertices = segments[i].vertices;
+          Eigen::Vector3f middle = Eigen::Vector3f::Zero();
+          for (std::int32_t v : vertices) middle += mesh.positions[static_cast<std::size_t>(v)];
+          middle /= static_cast<float>(vertices.size());
+          float reach = 0.0f;
+          for (std::int32_t v : vertices) {
+            reach = std::max(
+                reach, alongPlane(plane.up, mesh.positions[static_cast<std::size_t>(v)] - middle));
+          }
+          const float top = static_cast<float>(c.rise_m);
+          // The cylinder over its top, in the ball round the cylinder's middle.
+          const float half = 0.5f * kCoverHeightM;
+          const Eigen::Vector3f centre = middle + (top + half - plane.height(middle)) * plane.up;
+          index.within(centre, std::sqrt(reach * reach + half * half) + kCoverMarginM, &found);
+          std::size_t over = 0;
+          for (const auto& [point, distance_sq] : found) {
+            const Eigen::Vector3f& p = floating[point];
+            const float h = plane.height(p);
+            over +=
+                h > top && h <= top + kCoverHeightM && alongPlane(plane.up, p - middle) <= reach;
+          }
+          c.covered_share = static_cast<double>(over) / static_cast<double>(vertices.size());
+        }
+      });
+}
+
 }  // namespace
 
 std::optional<Eigen::Vector3f> groundUp(const Supports& supports, const ContextConfig& config) {
@@ -582,6 +651,10 @@ std::vector<SegmentContext> segmentContexts(const TriangleMesh& mesh, const Mesh
           if (low.plane >= 0) c.height_m = low.height;
         }
       });
+
+  if (config.judge_cover) {
+    measureCover(mesh, graph, supports, region, segments, planes, lowest, out);
+  }
 
   // Stacks: a candidate whose foot rests on a surface that faces up (as its support's plane
   // does), level with or under the foot and not its own, stands on that when the surface belongs

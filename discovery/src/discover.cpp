@@ -141,7 +141,7 @@ void DiscoveryConfig::validate() const {
 void ObjectSetConfig::validate() const {
   context.validate();
   for (const double w : {region_share_weight, single_view_region_share_weight, on_surface_penalty,
-                         floating_penalty, single_view_floating_penalty}) {
+                         floating_penalty, single_view_floating_penalty, covered_penalty}) {
     if (!(w >= 0.0) || !std::isfinite(w)) {
       throw std::invalid_argument(
           "the object set's region share weight and footing penalties must be numbers >= 0");
@@ -588,6 +588,16 @@ std::vector<Hypothesis> rankCandidates(const SceneCandidates& candidates,
 /// The smallest region share the object score's logarithm takes (ObjectSetConfig).
 constexpr double kMinRegionShare = 0.001;
 
+/// ObjectSetConfig::covered_penalty, in full from kCoveredFull of floating surface over a
+/// candidate (SegmentContext::covered_share), in part from kCoveredFrom.
+constexpr double kCoveredFrom = 0.1;
+constexpr double kCoveredFull = 0.4;
+
+double coveredPenalty(const SegmentContext& c, double penalty) {
+  if (!(c.covered_share > kCoveredFrom)) return 0.0;  // NaN: not measured
+  return penalty * std::min(1.0, (c.covered_share - kCoveredFrom) / (kCoveredFull - kCoveredFrom));
+}
+
 std::vector<Hypothesis> rankObjects(const TriangleMesh& mesh, const SceneCandidates& candidates,
                                     const ObjectnessModel& model, const DiscoveryConfig& config) {
   if (!config.objects.enabled) return rankCandidates(candidates, model, config.max_iou);
@@ -613,7 +623,7 @@ std::vector<Hypothesis> rankObjects(const TriangleMesh& mesh, const SceneCandida
     object_scores[i] = (scores[i] >= 0.0 ? scores[i] * f : scores[i] / f) +
                        config.objects.region_share_weight *
                            std::log(std::max(c.share_of_region, kMinRegionShare)) -
-                       penalty;
+                       penalty - coveredPenalty(c, config.objects.covered_penalty);
   }
   // By object score; ties keep the candidates' order.
   std::vector<std::size_t> order(n);

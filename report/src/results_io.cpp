@@ -271,6 +271,7 @@ Hypotheses hypothesesFrom(const discovery::SceneDiscovery& run, const std::strin
     r.observation = known(h.context.observation);
     r.rise_m = known(h.context.rise_m);
     r.support_noise_m = known(h.context.support_noise_m);
+    r.covered_share = known(h.context.covered_share);
     out.hypotheses.push_back(std::move(r));
   }
   return out;
@@ -362,6 +363,7 @@ void writeHypotheses(const fs::path& file, const Hypotheses& hyp) {
       c["observation"] = h.observation ? Json(*h.observation) : Json(nullptr);
       c["rise_m"] = h.rise_m ? Json(*h.rise_m) : Json(nullptr);
       c["support_noise_m"] = h.support_noise_m ? Json(*h.support_noise_m) : Json(nullptr);
+      c["covered_share"] = h.covered_share ? Json(*h.covered_share) : Json(nullptr);
       j["context"] = c;
     }
     if (h.box) {
@@ -453,6 +455,7 @@ Hypotheses readHypotheses(const fs::path& file) {
       r.observation = c->number("observation");
       r.rise_m = c->number("rise_m");
       r.support_noise_m = c->number("support_noise_m");
+      r.covered_share = c->number("covered_share");
     }
     out.hypotheses.push_back(std::move(r));
   }

@@ -420,7 +420,11 @@ SceneCandidates candidatesOf(const Scene& s) {
   c.measures[3].compactness = 0.9;  // the pair looks most compact
   const MeshGraph graph = buildMeshGraph(s.mesh);
   const Supports supports = findSupports(s.mesh, graph, SupportConfig{}, 3000);
-  c.context = segmentContexts(s.mesh, graph, supports, c.segments);
+  // The boxes are six separate grids each, so the stacked box floats over the standing one, as no
+  // fused box on a box does: what floats over a candidate is tested on its own below.
+  ContextConfig config;
+  config.judge_cover = false;
+  c.context = segmentContexts(s.mesh, graph, supports, c.segments, config);
   c.effective.evidence_vertices = 100;
   return c;
 }
@@ -585,6 +589,63 @@ TEST(ObjectSet, ACandidateAllTakenIsLeftOutAndOneBarelyTakenLosesTheTakenVertice
   for (std::int32_t v : ranked[1].segment.vertices) {
     EXPECT_FALSE(std::binary_search(b.begin(), b.end(), v));
   }
+}
+
+// A pot on the table with three leaves floating over it (a plant whose stems the mesh lost), a
+// box beside it with nothing over it, and a block on the table with a smaller block on it, all
+// one surface with the table (as a fused stack is): the leaves cover the pot; the upper storey,
+// whose surface runs down to the table, covers nothing.
+TEST(Context, LeavesFloatingOverAPotCoverItAndAStackOfOneSurfaceDoesNot) {
+  constexpr float kStep = 0.015f, kUpper = 0.05f;
+  const auto stack = [](float x, float y) {
+    if (std::abs(x - 0.15f) <= 0.02f && std::abs(y) <= 0.02f) return kTable + kUpper;
+    if (std::abs(x - 0.15f) <= 0.04f && std::abs(y) <= 0.04f) return kTable + kStep;
+    return kTable;
+  };
+  Scene s;
+  s.mesh = makeHeightField(161, 0.4f, stack);
+  s.boxes.push_back(describeSegment(s.mesh, addBox(s.mesh, -0.15f, 0.0f, kTable, 0.08f)));
+  s.boxes.push_back(describeSegment(s.mesh, addBox(s.mesh, -0.15f, 0.2f, kTable, 0.08f)));
+  for (const float x : {-0.17f, -0.15f, -0.13f})
+    addBox(s.mesh, x, 0.0f, kTable + 0.12f + x + 0.15f + 0.02f, 0.02f, 8);
+  std::vector<std::int32_t> lower;
+  for (std::size_t v = 0; v < 161 * 161; ++v) {
+    if (std::abs(s.mesh.positions[v].z() - (kTable + kStep)) < 1e-4f) {
+      lower.push_back(static_cast<std::int32_t>(v));
+    }
+  }
+  s.boxes.push_back(describeSegment(s.mesh, lower));
+  const std::vector<SegmentContext> c = contextsOf(s);
+  ASSERT_EQ(c.size(), 3u);
+  for (const SegmentContext& k : c) EXPECT_EQ(k.footing, Footing::kSupport);
+  // 3 leaves of 6 x 64 vertices over the pot's 600.
+  EXPECT_NEAR(c[0].covered_share, 3.0 * 6 * 64 / 600, 1e-9);
+  EXPECT_EQ(c[1].covered_share, 0.0);
+  EXPECT_EQ(c[2].covered_share, 0.0);
+  // Off (single views), nothing is measured.
+  const MeshGraph graph = buildMeshGraph(s.mesh);
+  const Supports supports = findSupports(s.mesh, graph, SupportConfig{}, 3000);
+  ContextConfig off;
+  off.judge_cover = false;
+  EXPECT_TRUE(std::isnan(segmentContexts(s.mesh, graph, supports, s.boxes, off)[0].covered_share));
+  // Measured alike, the bare box comes before the covered pot, which pays the whole penalty
+  // (covered by more than four tenths of its own vertex count).
+  SceneCandidates candidates;
+  candidates.segments = {s.boxes[0], s.boxes[1]};
+  candidates.context = {c[0], c[1]};
+  ShapeMeasures m;
+  m.compactness = 0.6;
+  candidates.measures.assign(2, m);
+  candidates.effective.evidence_vertices = 100;
+  MeasureNormaliser normaliser;
+  normaliser.sd[0] = 0.1;
+  DiscoveryConfig config;
+  const std::vector<Hypothesis> ranked =
+      rankObjects(s.mesh, candidates, ObjectnessModel::average(normaliser), config);
+  ASSERT_EQ(ranked.size(), 2u);
+  EXPECT_EQ(ranked[0].segment.vertices, s.boxes[1].vertices);
+  EXPECT_NEAR(ranked[0].object_score - ranked[1].object_score, config.objects.covered_penalty,
+              1e-9);
 }
 
 }  // namespace

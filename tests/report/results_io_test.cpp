@@ -82,6 +82,7 @@ TEST(ResultsIo, TheObjectSetAndEachHypothesisContextReadBackAsWritten) {
   written.hypotheses[0].observation = 1.5;
   written.hypotheses[0].rise_m = 0.09;
   written.hypotheses[0].support_noise_m = 0.002;
+  written.hypotheses[0].covered_share = 0.375;
   written.hypotheses[1].object_rank = 0;  // an alternative
   written.hypotheses[1].object_score = -0.25;
   written.hypotheses[1].footing = "none";
@@ -94,7 +95,7 @@ TEST(ResultsIo, TheObjectSetAndEachHypothesisContextReadBackAsWritten) {
   EXPECT_FALSE(doc["hypotheses"][1].contains("object_rank"));
   EXPECT_EQ(keysOf(doc["hypotheses"][1]["context"]),
             (std::set<std::string>{"footing", "height_m", "share_of_region", "observation",
-                                   "rise_m", "support_noise_m"}));
+                                   "rise_m", "support_noise_m", "covered_share"}));
   EXPECT_TRUE(doc["hypotheses"][1]["context"]["height_m"].is_null());
   const Hypotheses read = readHypotheses(dir / "hypotheses.json");
   for (std::size_t i = 0; i < 2; ++i) {
@@ -107,6 +108,7 @@ TEST(ResultsIo, TheObjectSetAndEachHypothesisContextReadBackAsWritten) {
     EXPECT_EQ(b.observation, a.observation);
     EXPECT_EQ(b.rise_m, a.rise_m);
     EXPECT_EQ(b.support_noise_m, a.support_noise_m);
+    EXPECT_EQ(b.covered_share, a.covered_share);
   }
   // A file from before the object set: no object rank, no context.
   const Hypotheses old = readHypotheses([&] {

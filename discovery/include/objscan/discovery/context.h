@@ -79,6 +79,10 @@ struct ContextConfig {
   /// while the pair as one candidate spans two. discoverScenes turns it on for single views
   /// (SceneInput::single_view), where the share weighs most.
   bool split_regions_at_stacks = false;
+  /// Measure what floats over each candidate on a support (SegmentContext::covered_share).
+  /// discoverScenes turns it off for single views (SceneInput::single_view), where a depth edge
+  /// parts the upper box of a stack from the one it rests on, so that it floats over it.
+  bool judge_cover = true;
 
   /// Throws std::invalid_argument naming the first bad field.
   void validate() const;
@@ -106,6 +110,14 @@ struct SegmentContext {
   /// the RMS height over that plane of the support's vertices near its foot; NaN otherwise.
   double rise_m = std::numeric_limits<double>::quiet_NaN();
   double support_noise_m = std::numeric_limits<double>::quiet_NaN();
+  /// For one on a support (kSupport, with ContextConfig::judge_cover): what floats over it, over
+  /// its own vertex count. Floating: the vertices of the regions off the supports that touch none,
+  /// within its reach along the support (its farthest vertex from its middle) and up to 30 cm
+  /// over its top. A plant's leaves hang over its pot, their stems too thin for the mesh to hold
+  /// (5.9 mm voxels): the pot is the base of a larger thing, not an object of its own. A thing on
+  /// a thing touches what holds it, so a stack's storey does not float over the one under it.
+  /// NaN otherwise.
+  double covered_share = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// The context of each of `segments` in `mesh` (whose graph is `graph`, cut at the supports or

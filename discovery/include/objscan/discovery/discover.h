@@ -63,6 +63,11 @@ struct ObjectSetConfig {
   /// view often hides where a thing meets its support, and a fused mesh, seen from around, less
   /// so. Chosen on synthetic fused scenes (1.0) and on mOSD learn (0.6); docs/discovery.md.
   double single_view_floating_penalty = 0.6;
+  /// Less this for a candidate on a support with surface floating over it (SegmentContext::
+  /// covered_share): in part from a tenth of its own vertex count, in full from four tenths. A
+  /// pot under its plant's leaves is the base of a larger thing. Chosen on fused synthetic table
+  /// tops (docs/discovery.md, "What floats over a pot").
+  double covered_penalty = 1.0;
   /// The share of a candidate's vertices that objects before it may already hold.
   double max_taken_share = 0.1;
   /// Throws std::invalid_argument naming the first bad field.

@@ -56,9 +56,11 @@ struct HypothesisRecord {
   /// Its context (discovery::SegmentContext): how it stands ("support", "surface", "patch",
   /// "under" or "none"; empty when unknown), the height of its lowest point over the support
   /// plane under it, its share of its region off the supports, how well fusion saw it, and for
-  /// one on a support how far it rises over it and the support's noise there.
+  /// one on a support how far it rises over it, the support's noise there and what floats over
+  /// it.
   std::string footing;
-  std::optional<double> height_m, share_of_region, observation, rise_m, support_noise_m;
+  std::optional<double> height_m, share_of_region, observation, rise_m, support_noise_m,
+      covered_share;
 };
 
 /// Where discovery spent its time on one scene, milliseconds.
