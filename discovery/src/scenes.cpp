@@ -215,7 +215,6 @@ DiscoveryConfig configOf(const DiscoveredScene& scene, const DiscoveryConfig& co
     out.supports.level_tops = false;
     out.objects.context.stacks_need_standing_holder = false;
     out.objects.context.split_regions_at_stacks = true;
-    out.objects.context.judge_cover = false;
     out.objects.floating_penalty = out.objects.single_view_floating_penalty;
     out.objects.region_share_weight = out.objects.single_view_region_share_weight;
     out.convexity.crease_deg = 0.0f;

@@ -622,7 +622,7 @@ TEST(Context, LeavesFloatingOverAPotCoverItAndAStackOfOneSurfaceDoesNot) {
   EXPECT_NEAR(c[0].covered_share, 3.0 * 6 * 64 / 600, 1e-9);
   EXPECT_EQ(c[1].covered_share, 0.0);
   EXPECT_EQ(c[2].covered_share, 0.0);
-  // Off (single views), nothing is measured.
+  // Off, nothing is measured.
   const MeshGraph graph = buildMeshGraph(s.mesh);
   const Supports supports = findSupports(s.mesh, graph, SupportConfig{}, 3000);
   ContextConfig off;
@@ -637,11 +637,9 @@ TEST(Context, LeavesFloatingOverAPotCoverItAndAStackOfOneSurfaceDoesNot) {
   m.compactness = 0.6;
   candidates.measures.assign(2, m);
   candidates.effective.evidence_vertices = 100;
-  MeasureNormaliser normaliser;
-  normaliser.sd[0] = 0.1;
-  DiscoveryConfig config;
+  const DiscoveryConfig config;
   const std::vector<Hypothesis> ranked =
-      rankObjects(s.mesh, candidates, ObjectnessModel::average(normaliser), config);
+      rankObjects(s.mesh, candidates, ObjectnessModel::average(compactnessOnly()), config);
   ASSERT_EQ(ranked.size(), 2u);
   EXPECT_EQ(ranked[0].segment.vertices, s.boxes[1].vertices);
   EXPECT_NEAR(ranked[0].object_score - ranked[1].object_score, config.objects.covered_penalty,

@@ -80,8 +80,6 @@ struct ContextConfig {
   /// (SceneInput::single_view), where the share weighs most.
   bool split_regions_at_stacks = false;
   /// Measure what floats over each candidate on a support (SegmentContext::covered_share).
-  /// discoverScenes turns it off for single views (SceneInput::single_view), where a depth edge
-  /// parts the upper box of a stack from the one it rests on, so that it floats over it.
   bool judge_cover = true;
 
   /// Throws std::invalid_argument naming the first bad field.

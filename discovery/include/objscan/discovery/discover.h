@@ -66,7 +66,7 @@ struct ObjectSetConfig {
   /// Less this for a candidate on a support with surface floating over it (SegmentContext::
   /// covered_share): in part from a tenth of its own vertex count, in full from four tenths. A
   /// pot under its plant's leaves is the base of a larger thing. Chosen on fused synthetic table
-  /// tops (docs/discovery.md, "What floats over a pot").
+  /// tops, and kept in single views (docs/discovery.md, "What floats over a pot").
   double covered_penalty = 1.0;
   /// The share of a candidate's vertices that objects before it may already hold.
   double max_taken_share = 0.1;
