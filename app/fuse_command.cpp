@@ -75,6 +75,9 @@ void addFusionSettings(report::Settings& settings, const pipeline::FusedScene& f
   if (!options.config.volume.truncation_m) {
     settings.resolved.push_back({"truncation", {exactText(options.config.volume.truncation())}});
   }
+  // The flags record what was given; whether the volume carved is what was used.
+  settings.resolved.push_back(
+      {"carve", {options.config.volume.carve_free_space ? "true" : "false"}});
   settings.intrinsics = fused.stats.intrinsics;
   settings.intrinsics_origin = fused.stats.intrinsics_origin;
 }

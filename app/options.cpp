@@ -62,6 +62,27 @@ class SettingsFile : public CLI::Config {
                    OBJSCAN_VERSION + "; its options are taken as they are");
     }
     std::vector<CLI::ConfigItem> out;
+    bool carve_named = false, no_carve_named = false;
+    for (const report::OptionSetting& o : settings.options) {
+      carve_named = carve_named || o.name == "carve";
+      no_carve_named = no_carve_named || o.name == "no-carve";
+    }
+    // A file from when fusion averaged by default names "carve" (not given: it averaged) and no
+    // "no-carve": it replays as --no-carve, so that it fuses as it did then.
+    if (carve_named && !no_carve_named) {
+      const CLI::Option* no_carve = given.front()->get_option_no_throw("--no-carve");
+      const bool carved =
+          std::any_of(settings.options.begin(), settings.options.end(), [](const auto& o) {
+            return o.name == "carve" && !o.values.empty() && o.values.front() == "true";
+          });
+      if (no_carve != nullptr && !carved && !givenHere(*no_carve)) {
+        CLI::ConfigItem item;
+        item.parents = {command};
+        item.name = "no-carve";
+        item.inputs = {"true"};
+        out.push_back(std::move(item));
+      }
+    }
     for (const report::OptionSetting& o : settings.options) {
       if (o.values.empty()) continue;  // unset: the command's default
       CLI::Option* opt = given.front()->get_option_no_throw("--" + o.name);

@@ -347,9 +347,10 @@ constexpr float kCoverHeightM = 0.3f;
 constexpr float kCoverMarginM = 0.01f;
 
 /// SegmentContext::covered_share of each candidate that stands on a support (ContextConfig::
-/// judge_cover): the vertices of the regions off the supports that touch none (`region`: the
-/// connected regions of the vertices off them), lying over its top by at most kCoverHeightM and
-/// no further from its middle along the plane it stands on than its own farthest vertex.
+/// judge_cover): the vertices of the regions off the supports that touch none, but for its own
+/// (`region`: the connected regions of the vertices off them), lying over its top by at most
+/// kCoverHeightM and no further from its middle along the plane it stands on than its own farthest
+/// vertex.
 void measureCover(const TriangleMesh& mesh, const MeshGraph& graph, const Supports& supports,
                   const std::vector<std::int32_t>& region, const std::vector<Segment>& segments,
                   const std::vector<UpPlane>& planes, const std::vector<Lowest>& lowest,
@@ -363,9 +364,11 @@ void measureCover(const TriangleMesh& mesh, const MeshGraph& graph, const Suppor
     }
   }
   std::vector<Eigen::Vector3f> floating;
+  std::vector<std::int32_t> floating_region;
   for (std::size_t v = 0; v < n; ++v) {
     if (!supports.on_support[v] && !touches[static_cast<std::size_t>(region[v])]) {
       floating.push_back(mesh.positions[v]);
+      floating_region.push_back(region[v]);
     }
   }
   if (floating.empty()) {
@@ -393,12 +396,32 @@ void measureCover(const TriangleMesh& mesh, const MeshGraph& graph, const Suppor
                 reach, alongPlane(plane.up, mesh.positions[static_cast<std::size_t>(v)] - middle));
           }
           const float top = static_cast<float>(c.rise_m);
-          // The cylinder over its top, in the ball round the cylinder's middle.
+          // Its own regions off the supports: a part of it floats over none of it.
+          std::vector<std::int32_t> own;
+          for (std::int32_t v : vertices) {
+            const std::size_t u = static_cast<std::size_t>(v);
+            if (!supports.on_support[u] &&
+                std::find(own.begin(), own.end(), region[u]) == own.end()) {
+              own.push_back(region[u]);
+            }
+          }
+          // The cylinder over its top, in the ball round the cylinder's middle. A bent support's
+          // height is not the plane's: the ball grows by how much the bend changes under it.
+          const auto bend = [&](const Eigen::Vector3f& p) {
+            return plane.height(p) - plane.up.dot(p);
+          };
+          float bend_change = 0.0f;
+          for (std::int32_t v : vertices) {
+            bend_change = std::max(
+                bend_change,
+                std::abs(bend(mesh.positions[static_cast<std::size_t>(v)]) - bend(middle)));
+          }
           const float half = 0.5f * kCoverHeightM;
           const Eigen::Vector3f centre = middle + (top + half - plane.height(middle)) * plane.up;
-          index.within(centre, std::sqrt(reach * reach + half * half) + kCoverMarginM, &found);
+          index.within(centre, std::hypot(reach, half + bend_change) + kCoverMarginM, &found);
           std::size_t over = 0;
           for (const auto& [point, distance_sq] : found) {
+            if (std::find(own.begin(), own.end(), floating_region[point]) != own.end()) continue;
             const Eigen::Vector3f& p = floating[point];
             const float h = plane.height(p);
             over +=

@@ -144,7 +144,8 @@ void ObjectSetConfig::validate() const {
                          floating_penalty, single_view_floating_penalty, covered_penalty}) {
     if (!(w >= 0.0) || !std::isfinite(w)) {
       throw std::invalid_argument(
-          "the object set's region share weight and footing penalties must be numbers >= 0");
+          "the object set's region share weight, footing penalties and covered penalty must be "
+          "numbers >= 0");
     }
   }
   if (!(max_taken_share >= 0.0 && max_taken_share < 1.0)) {

@@ -10,10 +10,12 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "cli_expect.h"
+#include "objscan/core/atomic_file.h"
 #include "objscan/core/intrinsics.h"
 #include "objscan/core/ply_io.h"
 #include "objscan/core/trajectory.h"
@@ -28,6 +30,7 @@ using testing::ProcessResult;
 using testing::TempDir;
 
 using testing::objscan;
+using testing::readBytes;
 
 /// A 320x240, 12-frame synthetic desk recording (TUM layout) under `dir`.
 fs::path syntheticRecording(const TempDir& dir) {
@@ -59,17 +62,46 @@ TEST(FuseCli, WritesAMeshAndATrajectoryThatReadBack) {
   EXPECT_TRUE(mesh.hasNormals());
   EXPECT_TRUE(mesh.hasColors());
   EXPECT_EQ(readTumTrajectory(out / "trajectory.txt").size(), 12u);
-  // --no-carve averages every reading: on 12 frames round three objects some voxels that views
-  // saw as free are solid in the average, so its mesh is not the carved one.
-  const fs::path averaged = dir / "averaged";
-  ASSERT_EQ(objscan({"fuse", scene.string(), "--out", averaged.string(), "--no-carve"}).exit_code,
-            0);
-  const TriangleMesh plain = readPly(averaged / "mesh.ply");
-  EXPECT_TRUE(plain.positions.size() != mesh.positions.size() || plain.positions != mesh.positions);
   // No temporary files are left beside the outputs (and the settings they were made with).
   std::set<std::string> files;
   for (const auto& e : fs::directory_iterator(out)) files.insert(e.path().filename().string());
   EXPECT_EQ(files, (std::set<std::string>{"mesh.ply", "trajectory.txt", "settings.json"}));
+}
+
+// settings.json says whether the volume carved, and --config fuses again as it was fused:
+// carved (the default), averaged (--no-carve), and from a file written when averaging was the
+// default, which names "carve" (not given) and no "no-carve".
+TEST(FuseCli, ASettingsFileFusesAgainWithOrWithoutCarvingAsItWasMade) {
+  TempDir dir;
+  const fs::path scene = syntheticRecording(dir);
+  const auto fuse = [&](const std::string& name, std::vector<std::string> args) {
+    const fs::path out = dir / name;
+    args.insert(args.begin(), "fuse");
+    args.insert(args.end(), {"--out", out.string()});
+    const ProcessResult r = objscan(args);
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return readPly(out / "mesh.ply").positions;
+  };
+  const auto carved = fuse("carved", {scene.string()});
+  const auto averaged = fuse("averaged", {scene.string(), "--no-carve"});
+  // On 12 frames round three objects some voxels that views saw as free are solid in the
+  // average: the meshes differ.
+  EXPECT_NE(carved, averaged);
+  const auto settings = [&](const std::string& name) {
+    return nlohmann::json::parse(readBytes(dir / name / "settings.json"));
+  };
+  EXPECT_EQ(settings("carved")["resolved"]["carve"], "true");
+  EXPECT_EQ(settings("averaged")["resolved"]["carve"], "false");
+  EXPECT_EQ(fuse("carved_again", {"--config", (dir / "carved" / "settings.json").string()}),
+            carved);
+  EXPECT_EQ(fuse("averaged_again", {"--config", (dir / "averaged" / "settings.json").string()}),
+            averaged);
+  nlohmann::json old = settings("averaged");
+  old["options"].erase("no-carve");
+  writeFileAtomically(dir / "old.json", old.dump());
+  EXPECT_EQ(fuse("old_again", {"--config", (dir / "old.json").string()}), averaged);
+  // The command line wins over the file.
+  EXPECT_EQ(fuse("old_carved", {"--config", (dir / "old.json").string(), "--carve"}), carved);
 }
 
 TEST(FuseCli, SaysWhichIntrinsicsAndDepthUnitsItUsesAndWarnsWhenTheyAreAssumed) {

@@ -606,8 +606,13 @@ TEST(Context, LeavesFloatingOverAPotCoverItAndAStackOfOneSurfaceDoesNot) {
   s.mesh = makeHeightField(161, 0.4f, stack);
   s.boxes.push_back(describeSegment(s.mesh, addBox(s.mesh, -0.15f, 0.0f, kTable, 0.08f)));
   s.boxes.push_back(describeSegment(s.mesh, addBox(s.mesh, -0.15f, 0.2f, kTable, 0.08f)));
-  for (const float x : {-0.17f, -0.15f, -0.13f})
+  for (const float x : {-0.17f, -0.15f, -0.13f}) {
     addBox(s.mesh, x, 0.0f, kTable + 0.12f + x + 0.15f + 0.02f, 0.02f, 8);
+  }
+  // Not over it: a leaf from 30.5 cm over its top, and one 9 cm from its middle (it reaches
+  // 5.7 cm).
+  addBox(s.mesh, -0.15f, 0.0f, kTable + 0.08f + 0.305f, 0.02f, 8);
+  addBox(s.mesh, -0.06f, 0.0f, kTable + 0.2f, 0.02f, 8);
   std::vector<std::int32_t> lower;
   for (std::size_t v = 0; v < 161 * 161; ++v) {
     if (std::abs(s.mesh.positions[v].z() - (kTable + kStep)) < 1e-4f) {
@@ -643,6 +648,13 @@ TEST(Context, LeavesFloatingOverAPotCoverItAndAStackOfOneSurfaceDoesNot) {
   ASSERT_EQ(ranked.size(), 2u);
   EXPECT_EQ(ranked[0].segment.vertices, s.boxes[1].vertices);
   EXPECT_NEAR(ranked[0].object_score - ranked[1].object_score, config.objects.covered_penalty,
+              1e-9);
+  // Covered by a quarter of its vertex count, half way up the ramp from a tenth to four tenths:
+  // half the penalty.
+  candidates.context[0].covered_share = 0.25;
+  const std::vector<Hypothesis> half =
+      rankObjects(s.mesh, candidates, ObjectnessModel::average(compactnessOnly()), config);
+  EXPECT_NEAR(half[0].object_score - half[1].object_score, 0.5 * config.objects.covered_penalty,
               1e-9);
 }
 

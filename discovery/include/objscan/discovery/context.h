@@ -108,13 +108,13 @@ struct SegmentContext {
   /// the RMS height over that plane of the support's vertices near its foot; NaN otherwise.
   double rise_m = std::numeric_limits<double>::quiet_NaN();
   double support_noise_m = std::numeric_limits<double>::quiet_NaN();
-  /// For one on a support (kSupport, with ContextConfig::judge_cover): what floats over it, over
-  /// its own vertex count. Floating: the vertices of the regions off the supports that touch none,
-  /// within its reach along the support (its farthest vertex from its middle) and up to 30 cm
-  /// over its top. A plant's leaves hang over its pot, their stems too thin for the mesh to hold
-  /// (5.9 mm voxels): the pot is the base of a larger thing, not an object of its own. A thing on
-  /// a thing touches what holds it, so a stack's storey does not float over the one under it.
-  /// NaN otherwise.
+  /// For one on a support (kSupport only, with ContextConfig::judge_cover): what floats over it,
+  /// over its own vertex count. Floating: the vertices of the regions off the supports that touch
+  /// none, but for its own, within its reach along the support (its farthest vertex from its
+  /// middle) and up to 30 cm over its top. A plant's leaves hang over its pot, their stems too thin
+  /// for the mesh to hold (5.9 mm voxels): the pot is the base of a larger thing, not an object of
+  /// its own. A thing on a thing touches what holds it, so a stack's storey does not float over the
+  /// one under it. NaN otherwise.
   double covered_share = std::numeric_limits<double>::quiet_NaN();
 };
 
