@@ -408,9 +408,14 @@ TEST_F(ScanCli, SettingsJsonSaysHowTheRunWasMadeAndConfigRepeatsIt) {
   EXPECT_EQ(options["voxel-size"], std::vector<std::string>{"0.005859375"});  // every digit
   // The truncation is left to its default (it follows the voxel size), and the value used noted.
   EXPECT_TRUE(options["truncation"].empty());
-  ASSERT_EQ(settings.resolved.size(), 1u);
-  EXPECT_EQ(settings.resolved[0].name, "truncation");
-  EXPECT_EQ(settings.resolved[0].values, std::vector<std::string>{"0.03"});
+  // So is whether the volume carved (the flags say only what was given).
+  const auto resolvedOf = [](const report::Settings& s) {
+    std::map<std::string, std::vector<std::string>> values;
+    for (const report::OptionSetting& o : s.resolved) values[o.name] = o.values;
+    return values;
+  };
+  EXPECT_EQ(resolvedOf(settings), (std::map<std::string, std::vector<std::string>>{
+                                      {"truncation", {"0.03"}}, {"carve", {"true"}}}));
   EXPECT_EQ(options["top"], std::vector<std::string>{"5"});
   // The report shows them.
   EXPECT_NE(readWholeFile(out_ / "report.html").find("id=\"settings\""), std::string::npos);
@@ -438,8 +443,8 @@ TEST_F(ScanCli, SettingsJsonSaysHowTheRunWasMadeAndConfigRepeatsIt) {
   options["catalog"] = {catalog.string()};
   options["no-catalog"] = {"false"};
   EXPECT_EQ(repeated_options, options);
-  ASSERT_EQ(repeated.resolved.size(), 1u);
-  EXPECT_EQ(repeated.resolved[0].values, std::vector<std::string>{"0.06"});
+  EXPECT_EQ(resolvedOf(repeated), (std::map<std::string, std::vector<std::string>>{
+                                      {"truncation", {"0.06"}}, {"carve", {"true"}}}));
   ASSERT_TRUE(repeated.catalog.has_value());
   EXPECT_EQ(repeated.catalog->path, catalog.string());
 
