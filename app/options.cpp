@@ -62,20 +62,19 @@ class SettingsFile : public CLI::Config {
                    OBJSCAN_VERSION + "; its options are taken as they are");
     }
     std::vector<CLI::ConfigItem> out;
-    bool carve_named = false, no_carve_named = false;
+    bool carve_named = false, carved = false, no_carve_named = false;
     for (const report::OptionSetting& o : settings.options) {
-      carve_named = carve_named || o.name == "carve";
+      if (o.name == "carve") {
+        carve_named = true;
+        carved = !o.values.empty() && o.values.front() == "true";
+      }
       no_carve_named = no_carve_named || o.name == "no-carve";
     }
     // A file from when fusion averaged by default names "carve" (not given: it averaged) and no
     // "no-carve": it replays as --no-carve, so that it fuses as it did then.
-    if (carve_named && !no_carve_named) {
+    if (carve_named && !carved && !no_carve_named) {
       const CLI::Option* no_carve = given.front()->get_option_no_throw("--no-carve");
-      const bool carved =
-          std::any_of(settings.options.begin(), settings.options.end(), [](const auto& o) {
-            return o.name == "carve" && !o.values.empty() && o.values.front() == "true";
-          });
-      if (no_carve != nullptr && !carved && !givenHere(*no_carve)) {
+      if (no_carve != nullptr && !givenHere(*no_carve)) {
         CLI::ConfigItem item;
         item.parents = {command};
         item.name = "no-carve";

@@ -175,6 +175,17 @@ class VertexSegments {
 constexpr float kBroadRingM = 0.03f;
 constexpr double kBroadCover = 0.25;
 
+/// The farthest of `vertices` from `centre` along a plane whose normal is `up`.
+float farthestAlong(const TriangleMesh& mesh, const std::vector<std::int32_t>& vertices,
+                    const Eigen::Vector3f& up, const Eigen::Vector3f& centre) {
+  float farthest = 0.0f;
+  for (std::int32_t v : vertices) {
+    farthest =
+        std::max(farthest, alongPlane(up, mesh.positions[static_cast<std::size_t>(v)] - centre));
+  }
+  return farthest;
+}
+
 bool broadLevelSurface(const TriangleMesh& mesh, const PointIndex& all_index, const UpPlane& plane,
                        const Segment& s, const std::vector<std::int32_t>& surface, float gap,
                        double mean_edge_m, float min_cos) {
@@ -188,10 +199,7 @@ bool broadLevelSurface(const TriangleMesh& mesh, const PointIndex& all_index, co
   centre /= static_cast<float>(surface.size());
   height /= static_cast<float>(surface.size());
   auto across = [&](const Eigen::Vector3f& p) { return alongPlane(plane.up, p - centre); };
-  float radius = 0.0f;
-  for (std::int32_t v : s.vertices) {
-    radius = std::max(radius, across(mesh.positions[static_cast<std::size_t>(v)]));
-  }
+  const float radius = farthestAlong(mesh, s.vertices, plane.up, centre);
   std::vector<std::pair<std::uint32_t, float>> found;
   all_index.within(centre - (plane.height(centre) - height) * plane.up, radius + kBroadRingM,
                    &found);
@@ -387,14 +395,8 @@ void measureCover(const TriangleMesh& mesh, const MeshGraph& graph, const Suppor
           if (c.footing != Footing::kSupport || lowest[i].plane < 0) continue;
           const UpPlane& plane = planes[static_cast<std::size_t>(lowest[i].plane)];
           const std::vector<std::int32_t>& vertices = segments[i].vertices;
-          Eigen::Vector3f middle = Eigen::Vector3f::Zero();
-          for (std::int32_t v : vertices) middle += mesh.positions[static_cast<std::size_t>(v)];
-          middle /= static_cast<float>(vertices.size());
-          float reach = 0.0f;
-          for (std::int32_t v : vertices) {
-            reach = std::max(
-                reach, alongPlane(plane.up, mesh.positions[static_cast<std::size_t>(v)] - middle));
-          }
+          const Eigen::Vector3f& middle = segments[i].centroid;
+          const float reach = farthestAlong(mesh, vertices, plane.up, middle);
           const float top = static_cast<float>(c.rise_m);
           // Its own regions off the supports: a part of it floats over none of it.
           std::vector<std::int32_t> own;

@@ -280,9 +280,7 @@ std::size_t TsdfVolume::integrate(const cv::Mat& depth_m, const cv::Mat& color_r
                 const float d = depth_data[px];
                 if (!(d > 0.0f)) continue;
                 const float sdf = d - depth_C[x];
-                if (sdf < -(behind_varies ? std::min(noiseBand(d, min_behind), trunc) : behind)) {
-                  continue;
-                }
+                if (sdf < -(behind_varies ? config_.behindBand(d) : behind)) continue;
                 PackedVoxel& vox = block.voxels[row + x];
                 const float tsdf = std::min(1.0f, sdf * inv_trunc);
                 std::uint16_t w = vox.weight;
