@@ -40,6 +40,7 @@
 #include <opencv2/core.hpp>
 
 #include "bench_main.h"
+#include "build_paths.h"
 #include "objscan/capture/folder_source.h"
 #include "objscan/capture/openni.h"
 #include "objscan/core/atomic_file.h"

@@ -51,6 +51,7 @@
 
 #include "bench_main.h"
 #include "bench_memory.h"
+#include "build_paths.h"
 #include "fusion_peers.h"
 #include "objscan/capture/folder_source.h"
 #include "objscan/core/atomic_file.h"

@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "build_paths.h"
 #include "objscan/core/ply_io.h"
 #include "objscan/core/triangle_mesh.h"
 

@@ -32,6 +32,7 @@
 #include <civetweb.h>
 
 #include "bench_main.h"
+#include "build_paths.h"
 
 extern char** environ;
 

@@ -53,6 +53,7 @@
 #include <nlohmann/json.hpp>
 
 #include "bench_main.h"
+#include "build_paths.h"
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/organized_cloud.h"
 #include "objscan/discovery/evaluation.h"

@@ -6,6 +6,7 @@
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
 
+#include "build_paths.h"
 #include "objscan/capture/folder_source.h"
 
 namespace objscan::capture {

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <opencv2/imgcodecs.hpp>
 
+#include "build_paths.h"
 #include "objscan/capture/openni.h"
 #include "objscan/capture/tum_folder.h"
 

@@ -4,6 +4,7 @@
 
 #include <filesystem>
 
+#include "build_paths.h"
 #include "objscan/capture/synthetic/synthetic_recording.h"
 #include "objscan/render/offscreen_renderer.h"
 

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "build_paths.h"
 #include "objscan/capture/folder_source.h"
 #include "objscan/capture/synthetic/synthetic_source.h"
 #include "objscan/core/mesh_distance.h"

@@ -10,7 +10,7 @@
 
 namespace objscan::testing {
 
-/// Runs the objscan binary under test (OBJSCAN_EXE, defined for every test program) with `args`.
+/// Runs the objscan binary under test (OBJSCAN_EXE, build_paths.h) with `args`.
 inline ProcessResult objscan(std::vector<std::string> args) {
   args.insert(args.begin(), OBJSCAN_EXE);
   return runProcess(args);

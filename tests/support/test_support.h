@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "build_paths.h"
 #include "objscan/core/intrinsics.h"
 #include "objscan/core/triangle_mesh.h"
 
