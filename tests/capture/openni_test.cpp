@@ -414,7 +414,12 @@ TEST_F(OpenNI, UnpluggedSensorEndsTheLiveStreamAndLeavesAReplayableRecording) {
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("unplugged"), std::string::npos) << e.what();
   }
-  EXPECT_EQ(returned.size(), 7u);
+  // The reader may miss a frame, as in LiveVirtualSensorDeliversTheFoldersFramesInOrder (a stall
+  // of over 50 ms beside other tests cost one of the 7, 2026-11-29), but not the last, which no
+  // newer frame replaces; the recording, which the sensor feeds itself, holds all 7.
+  ASSERT_GE(4 * returned.size(), 3 * 7u);
+  ASSERT_LE(returned.size(), 7u);
+  EXPECT_NEAR(returned.back().stamp_s, folderFrames()[6].stamp_s, 1e-6);
   const RecordSummary summary = *finishRecording(*live, "finished by the test");
   EXPECT_TRUE(summary.failed);
   EXPECT_NE(summary.stop_reason.find("unplugged"), std::string::npos) << summary.stop_reason;
