@@ -1,8 +1,8 @@
 // Where the tests and benchmarks find the source tree, the shared data and the objscan binary of
-// this build. The paths are compiled into one generated source (build_paths.cpp in the build
-// folder, the objscan_build_paths library) and not defined on every test source: absolute paths
-// in each compile command made every test source miss ccache's cache in a checkout elsewhere
-// (CI's fresh one), though nothing in it had changed.
+// this build. The paths are definitions on one source (build_paths.cpp, the objscan_build_paths
+// library) and not on every test source: absolute paths in each compile command made every test
+// source miss ccache's cache in a checkout elsewhere (CI's fresh one), though nothing in it had
+// changed.
 #pragma once
 
 namespace objscan::build_paths {
