@@ -84,7 +84,7 @@ void addFusionSettings(report::Settings& settings, const pipeline::FusedScene& f
 
 int runFuse(const FuseCommandOptions& options) {
   // The server first: a port that cannot be had is refused before anything is opened or written.
-  LiveSettings live_settings;
+  server::LiveSettings live_settings;
   live_settings.command = "fuse";
   live_settings.source = options.fuse.source;
   live_settings.results = options.out;
@@ -106,7 +106,7 @@ int runFuse(const FuseCommandOptions& options) {
     addFusionSettings(settings, fused, options.fuse);
     report::writeSettings(options.out / report::kSettingsFile, settings);
   } catch (const std::exception& e) {
-    if (live) live->finish(LiveFinal::without(std::string("failed: ") + e.what()), false);
+    if (live) live->finish(server::LiveFinal::without(std::string("failed: ") + e.what()), false);
     throw;
   }
   printFuseSummary(fused, options.out);
@@ -116,7 +116,7 @@ int runFuse(const FuseCommandOptions& options) {
   }
   const int code = reportSensorLoss(fused.stats);
   if (live) {
-    LiveFinal final;
+    server::LiveFinal final;
     final.outcome = fused.stats.interrupted ? "stopped by Ctrl-C: the mesh holds the frames fused"
                     : fused.stats.sensor_lost.empty() ? "finished"
                                                       : "sensor lost: " + fused.stats.sensor_lost;

@@ -226,7 +226,7 @@ class ScanRun {
 /// The final ranking for the live page: the first `shown` hypotheses, and their vertices to
 /// paint.
 void addLiveHypotheses(const discovery::SceneDiscovery& found, std::size_t shown,
-                       LiveFinal& final) {
+                       server::LiveFinal& final) {
   for (std::size_t i = 0; i < found.ranked.size() && i < shown; ++i) {
     const discovery::Hypothesis& h = found.ranked[i].hypothesis;
     final.hypotheses.push_back({static_cast<int>(i) + 1, h.score, h.segment.vertices.size(),
@@ -241,10 +241,10 @@ void addLiveHypotheses(const discovery::SceneDiscovery& found, std::size_t shown
 }
 
 /// What a stopped scan tells the page: it ends at once, showing what was written.
-LiveFinal stoppedFinal(const std::vector<std::string>& missing) {
+server::LiveFinal stoppedFinal(const std::vector<std::string>& missing) {
   std::string list;
   for (const std::string& m : missing) list += (list.empty() ? "" : ", ") + m;
-  return LiveFinal::without("stopped by Ctrl-C / SIGTERM; not produced: " + list);
+  return server::LiveFinal::without("stopped by Ctrl-C / SIGTERM; not produced: " + list);
 }
 
 }  // namespace
@@ -257,7 +257,7 @@ int runScan(ScanCommandOptions options) {
   options.pictures.validate();
   const fs::path truth = groundTruthOf(options);
   const discovery::SceneDiscoveryOptions library = sceneDiscoveryOptions(options.discover);
-  LiveSettings live_settings;
+  server::LiveSettings live_settings;
   live_settings.command = "scan";
   live_settings.source = options.source;
   live_settings.results = options.out;
@@ -292,7 +292,7 @@ int runScan(ScanCommandOptions options) {
     // A sensor lost mid-capture still gives every output, from the frames before it, and exit 1.
     const int code = reportSensorLoss(fused.stats);
     if (live) {
-      LiveFinal final;
+      server::LiveFinal final;
       final.outcome = code == kExitSuccess ? "finished: " + std::to_string(found.ranked.size()) +
                                                  " hypotheses ranked"
                                            : "sensor lost: " + fused.stats.sensor_lost;
@@ -307,7 +307,7 @@ int runScan(ScanCommandOptions options) {
     }
     return code;
   } catch (const std::exception& e) {
-    if (live) live->finish(LiveFinal::without(std::string("failed: ") + e.what()), false);
+    if (live) live->finish(server::LiveFinal::without(std::string("failed: ") + e.what()), false);
     throw;
   }
 }

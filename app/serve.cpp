@@ -31,9 +31,10 @@ void addServeOptions(CLI::App* sub, ServeOptions& o) {
       ->check(positiveNumber());
 }
 
-std::unique_ptr<LiveRun> LiveRun::start(const ServeOptions& options, LiveSettings settings) {
+std::unique_ptr<LiveRun> LiveRun::start(const ServeOptions& options,
+                                        server::LiveSettings settings) {
   if (options.address.empty()) return nullptr;
-  const ServeAddress address = parseServeAddress(options.address);
+  const server::ServeAddress address = server::parseServeAddress(options.address);
   settings.discovery = options.discovery;
   settings.discovery_interval_s = options.discovery_interval_s;
   std::unique_ptr<LiveRun> run(new LiveRun(options, address, std::move(settings)));
@@ -46,7 +47,8 @@ std::unique_ptr<LiveRun> LiveRun::start(const ServeOptions& options, LiveSetting
   return run;
 }
 
-LiveRun::LiveRun(const ServeOptions& options, const ServeAddress& address, LiveSettings settings)
+LiveRun::LiveRun(const ServeOptions& options, const server::ServeAddress& address,
+                 server::LiveSettings settings)
     : options_(options), session_(std::move(settings)), server_(session_, address) {}
 
 void LiveRun::watch(pipeline::FuseLimits& limits) {
@@ -55,7 +57,7 @@ void LiveRun::watch(pipeline::FuseLimits& limits) {
   limits.before_meshing = [this] { session_.setStage("meshing the volume"); };
 }
 
-void LiveRun::finish(LiveFinal final, bool keep_serving) {
+void LiveRun::finish(server::LiveFinal final, bool keep_serving) {
   const bool linger = keep_serving && !(options_.wait_s && *options_.wait_s <= 0.0);
   // A Ctrl-C after the capture ended (on a sensor, the first one ends capture and is cleared)
   // but before the results were shown asks to end: no waiting.

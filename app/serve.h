@@ -4,9 +4,9 @@
 #include <optional>
 #include <string>
 
-#include "live_server.h"
-#include "live_session.h"
 #include "objscan/pipeline/fuse.h"
+#include "objscan/server/live_server.h"
+#include "objscan/server/live_session.h"
 
 // CLI11 is included by the sources that build the command line: it takes seconds to compile
 // at -O3, and most sources that include this header do not use it.
@@ -34,20 +34,21 @@ class LiveRun {
  public:
   /// Nothing when options.address is empty. Otherwise starts the server (std::invalid_argument,
   /// exit 2, when it cannot listen) and prints its address.
-  static std::unique_ptr<LiveRun> start(const ServeOptions& options, LiveSettings settings);
+  static std::unique_ptr<LiveRun> start(const ServeOptions& options, server::LiveSettings settings);
 
   /// Makes fusion report every frame to the session.
   void watch(pipeline::FuseLimits& limits);
   void stage(const std::string& name) { session_.setStage(name); }
   /// The run is over: the page shows `final`; then, with `keep_serving`, serves the results until
   /// Ctrl-C or --serve-wait (a run stopped by Ctrl-C ends at once).
-  void finish(LiveFinal final, bool keep_serving = true);
+  void finish(server::LiveFinal final, bool keep_serving = true);
 
  private:
-  LiveRun(const ServeOptions& options, const ServeAddress& address, LiveSettings settings);
+  LiveRun(const ServeOptions& options, const server::ServeAddress& address,
+          server::LiveSettings settings);
   ServeOptions options_;
-  LiveSession session_;
-  LiveServer server_;
+  server::LiveSession session_;
+  server::LiveServer server_;
 };
 
 }  // namespace objscan::app

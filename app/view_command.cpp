@@ -11,9 +11,9 @@
 #include "objscan/core/error.h"
 #include "objscan/core/log.h"
 #include "objscan/discovery/catalog.h"
+#include "objscan/server/view_server.h"
 #include "options.h"
 #include "stop_signals.h"
-#include "view_server.h"
 
 namespace objscan::app {
 namespace {
@@ -84,45 +84,46 @@ int runView(const ViewCommandOptions& options) {
     throw InputError(options.dir, "is not a folder: give a results folder of objscan scan or discover");
   }
   // The address first: a bad one is a usage error before any file is read.
-  std::optional<ServeAddress> address;
-  if (options.address) address = parseServeAddress(*options.address);
+  std::optional<server::ServeAddress> address;
+  if (options.address) address = server::parseServeAddress(*options.address);
 
-  ViewSettings settings;
+  server::ViewSettings settings;
   settings.labeller = labellerOf(options.labeller);  // before any file is read
   settings.dir = options.dir;
   settings.catalog = options.catalog;
   settings.max_preview_triangles = options.max_preview_triangles;
-  ViewData data(settings);
+  server::ViewData data(settings);
   // Ctrl-C from here on ends the viewer cleanly (exit 0), also while the meshes are read.
   StopSignals signals;
 
   // Listening before the meshes are read: a port in use is said at once, and the page can be
   // opened while they load (it waits for them).
-  std::unique_ptr<ViewServer> server;
+  std::unique_ptr<server::ViewServer> viewer;
   if (address) {
-    server = std::make_unique<ViewServer>(data, *address);
+    viewer = std::make_unique<server::ViewServer>(data, *address);
     if (address->host.rfind("127.", 0) != 0) {
       log::warning("--serve " + *options.address + ": the viewer and its labelling can be used " +
                    "by anyone who reaches this machine on that port (there is no password)");
     }
   } else {
     try {
-      server = std::make_unique<ViewServer>(data, ServeAddress{"127.0.0.1", kDefaultPort});
+      viewer = std::make_unique<server::ViewServer>(
+          data, server::ServeAddress{"127.0.0.1", kDefaultPort});
     } catch (const std::invalid_argument&) {
       log::warning("port " + std::to_string(kDefaultPort) +
                    " is taken (another objscan view?): serving on a free one");
-      server = std::make_unique<ViewServer>(data, ServeAddress{"127.0.0.1", 0});
+      viewer = std::make_unique<server::ViewServer>(data, server::ServeAddress{"127.0.0.1", 0});
     }
   }
   char how_long[64] = "until Ctrl-C";
   if (options.wait_s) std::snprintf(how_long, sizeof how_long, "for %g s", *options.wait_s);
-  std::printf("viewer        %s (serving %s)\n", server->url().c_str(), how_long);
+  std::printf("viewer        %s (serving %s)\n", viewer->url().c_str(), how_long);
   std::fflush(stdout);
 
   data.loadScenes();
   std::size_t shown = 0, labellable = 0;
-  const ViewScene* first_failure = nullptr;
-  for (const ViewScene& s : data.scenes()) {
+  const server::ViewScene* first_failure = nullptr;
+  for (const server::ViewScene& s : data.scenes()) {
     shown += s.error.empty() ? 1 : 0;
     labellable += s.catalog_scene ? 1 : 0;
     if (!s.error.empty() && !first_failure) first_failure = &s;
@@ -133,7 +134,7 @@ int runView(const ViewCommandOptions& options) {
     throw InputError(options.dir, "no scene can be shown: " + reason +
                                       (data.scenes().size() > 1 ? " (and the others)" : ""));
   }
-  for (const ViewScene& s : data.scenes()) {
+  for (const server::ViewScene& s : data.scenes()) {
     if (!s.error.empty()) log::warning("scene " + s.name + " cannot be shown: " + s.error);
   }
   // Scenes the catalog holds can be labelled; how many labels they have the page says.

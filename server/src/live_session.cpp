@@ -1,4 +1,4 @@
-#include "live_session.h"
+#include "objscan/server/live_session.h"
 
 #include <sched.h>
 #include <sys/syscall.h>
@@ -19,15 +19,15 @@
 #include "objscan/core/palette.h"
 #include "objscan/fusion/marching_cubes.h"
 
-namespace objscan::app {
+namespace objscan::server {
 namespace {
 
 using Clock = std::chrono::steady_clock;
 using Json = nlohmann::json;
 
 /// Blocks of the volume copied per frame for the worker: 1024 blocks of 8^3 voxels are about
-/// 4 MB (4-byte voxels and their colour), about a millisecond of copying, so a 30 Hz loop never waits long for it, and a volume of
-/// 30,000 blocks is copied in a second.
+/// 4 MB (4-byte voxels and their colour), about a millisecond of copying, so a 30 Hz loop never
+/// waits long for it, and a volume of 30,000 blocks is copied in a second.
 constexpr std::size_t kCopyBlocksPerFrame = 1024;
 /// Hypotheses are painted on the model picture by the 1 cm cell their vertices fall in.
 constexpr float kPaintCell = 0.01f;
@@ -58,11 +58,16 @@ std::string rankColorText(int rank) {
 
 const char* trackingText(fusion::FrameStatus status) {
   switch (status) {
-    case fusion::FrameStatus::kTracked: return "tracking";
-    case fusion::FrameStatus::kGivenPose: return "given pose";
-    case fusion::FrameStatus::kFirst: return "started";
-    case fusion::FrameStatus::kLost: return "lost";
-    case fusion::FrameStatus::kNoDepth: return "no depth";
+    case fusion::FrameStatus::kTracked:
+      return "tracking";
+    case fusion::FrameStatus::kGivenPose:
+      return "given pose";
+    case fusion::FrameStatus::kFirst:
+      return "started";
+    case fusion::FrameStatus::kLost:
+      return "lost";
+    case fusion::FrameStatus::kNoDepth:
+      return "no depth";
   }
   return "unknown";
 }
@@ -154,9 +159,14 @@ void LiveSession::onFrame(const pipeline::FrameEvent& e) {
   switch (e.outcome.status) {
     case fusion::FrameStatus::kTracked:
     case fusion::FrameStatus::kGivenPose:
-    case fusion::FrameStatus::kFirst: ++fused_; break;
-    case fusion::FrameStatus::kLost: ++lost_; break;
-    case fusion::FrameStatus::kNoDepth: break;
+    case fusion::FrameStatus::kFirst:
+      ++fused_;
+      break;
+    case fusion::FrameStatus::kLost:
+      ++lost_;
+      break;
+    case fusion::FrameStatus::kNoDepth:
+      break;
   }
   if (e.frame.device_frame >= 0) {
     if (last_device_frame_ >= 0 && e.frame.device_frame > last_device_frame_ + 1) {
@@ -187,9 +197,9 @@ void LiveSession::onFrame(const pipeline::FrameEvent& e) {
     if (state == CopyState::kCopying) {
       copy_next_ = e.fusion.volume().copyBlocksInto(*copy_, copy_next_, kCopyBlocksPerFrame);
       // The copy, and discovery's about 1 kB per vertex of its mesh (about 40 vertices a block).
-      extra_bytes_ = static_cast<double>(copy_->memoryBytes()) +
-                     kDiscoveryBytesPerVertex * kVerticesPerBlock *
-                         static_cast<double>(copy_->blockCount());
+      extra_bytes_ =
+          static_cast<double>(copy_->memoryBytes()) +
+          kDiscoveryBytesPerVertex * kVerticesPerBlock * static_cast<double>(copy_->blockCount());
       if (copy_next_ >= e.fusion.volume().blockCount()) {
         {
           std::lock_guard lock(mutex_);
@@ -427,24 +437,18 @@ std::string LiveSession::stateJson(std::uint64_t after, std::chrono::millisecond
     j["picture"] = s->seq;
     j["elapsed_s"] = c.elapsed_s;
     j["tracking"] = {{"state", c.tracking}, {"reason", c.reason}};
-    j["frames"] = {{"read", c.read},
-                   {"total", c.total > 0 ? Json(c.total) : Json(nullptr)},
-                   {"fused", c.fused},
-                   {"lost", c.lost},
-                   {"dropped", c.dropped},
-                   {"per_second", c.frames_per_s}};
+    j["frames"] = {{"read", c.read},       {"total", c.total > 0 ? Json(c.total) : Json(nullptr)},
+                   {"fused", c.fused},     {"lost", c.lost},
+                   {"dropped", c.dropped}, {"per_second", c.frames_per_s}};
     j["volume"] = {{"bytes", c.volume_bytes}, {"blocks", c.blocks}, {"voxel_m", c.voxel_m}};
     j["has_color"] = !s->color_rgb.empty();
   }
   if (!settings_.discovery) {
     j["discovery"] = nullptr;
   } else if (objects) {
-    j["discovery"] = {{"round", objects->round},
-                      {"at_frame", objects->at_frame},
-                      {"seconds", objects->seconds},
-                      {"mesh_vertices", objects->mesh_vertices},
-                      {"message", objects->message},
-                      {"hypotheses", hypothesesJson(objects->list)}};
+    j["discovery"] = {{"round", objects->round},     {"at_frame", objects->at_frame},
+                      {"seconds", objects->seconds}, {"mesh_vertices", objects->mesh_vertices},
+                      {"message", objects->message}, {"hypotheses", hypothesesJson(objects->list)}};
   } else {
     j["discovery"] = {{"round", 0}, {"hypotheses", Json::array()}};
   }
@@ -516,4 +520,4 @@ std::string LiveSession::colorJpeg() {
   return color_jpeg_;
 }
 
-}  // namespace objscan::app
+}  // namespace objscan::server

@@ -1,4 +1,4 @@
-#include "live_server.h"
+#include "objscan/server/live_server.h"
 
 #include <charconv>
 #include <chrono>
@@ -10,7 +10,7 @@
 #include "http_query.h"
 #include "live_page.h"  // generated from live_page.html: kLivePage
 
-namespace objscan::app {
+namespace objscan::server {
 namespace {
 
 namespace fs = std::filesystem;
@@ -31,8 +31,9 @@ std::uint64_t afterOf(const std::string& query) {
 
 LiveServer::LiveServer(LiveSession& session, const ServeAddress& address)
     : session_(session),
-      server_(address, [this](const HttpRequest& request) { return route(request); },
-              HttpServerOptions{"--serve", 0, true}) {}
+      server_(
+          address, [this](const HttpRequest& request) { return route(request); },
+          HttpServerOptions{"--serve", 0, true}) {}
 
 HttpReply LiveServer::route(const HttpRequest& request) {
   const std::string_view path = request.path;
@@ -56,4 +57,4 @@ HttpReply LiveServer::route(const HttpRequest& request) {
   return HttpReply::text(404, "not found");
 }
 
-}  // namespace objscan::app
+}  // namespace objscan::server

@@ -4,7 +4,7 @@
 
 #include <vector>
 
-namespace objscan::app {
+namespace objscan::server {
 
 std::optional<std::string> queryValue(std::string_view query, const char* name,
                                       std::size_t max_bytes) {
@@ -16,4 +16,4 @@ std::optional<std::string> queryValue(std::string_view query, const char* name,
   return std::string(value.data(), static_cast<std::size_t>(n));
 }
 
-}  // namespace objscan::app
+}  // namespace objscan::server

@@ -1,7 +1,7 @@
 #pragma once
 
-#include <cstddef>
 #include <atomic>
+#include <cstddef>
 #include <cstdint>
 #include <filesystem>
 #include <memory>
@@ -10,12 +10,12 @@
 #include <string>
 #include <vector>
 
-#include "http_server.h"
 #include "objscan/discovery/catalog.h"
 #include "objscan/report/results.h"
+#include "objscan/server/http_server.h"
 
 /// `objscan view`: a results folder in 3-D in the browser, and the paper's labelling tool.
-namespace objscan::app {
+namespace objscan::server {
 
 struct ViewSettings {
   std::filesystem::path dir;  ///< the results folder (hypotheses.json)
@@ -124,4 +124,4 @@ class ViewServer {
   HttpServer server_;  ///< last: it stops before the data it serves is gone
 };
 
-}  // namespace objscan::app
+}  // namespace objscan::server

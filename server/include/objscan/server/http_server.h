@@ -24,7 +24,7 @@
 /// a bounded time only: about 10 s for a body (up to 15 when it stops short), 10 s plus 1 s per
 /// 256 kB for a reply; past that its connection is dropped. A file reply (HttpReply::file) is
 /// sandboxed (Content-Security-Policy): the results folder's pages run in an origin of their own.
-namespace objscan::app {
+namespace objscan::server {
 
 /// Where the server listens. The address is 127.0.0.1 unless one is given; port 0 takes any free
 /// port.
@@ -64,7 +64,9 @@ struct HttpReply {
   static HttpReply sharedBytes(std::string type, std::shared_ptr<const std::string> body);
   static HttpReply staticBytes(std::string type, std::string_view body);
   static HttpReply sendFile(std::filesystem::path file);
-  std::string_view content() const { return shared ? std::string_view(*shared) : fixed.empty() ? std::string_view(body) : fixed; }
+  std::string_view content() const {
+    return shared ? std::string_view(*shared) : fixed.empty() ? std::string_view(body) : fixed;
+  }
 };
 
 struct HttpServerOptions {
@@ -105,4 +107,4 @@ class HttpServer {
 /// links are resolved still inside the folder and a regular file.
 std::filesystem::path resultFile(const std::filesystem::path& folder, std::string_view relative);
 
-}  // namespace objscan::app
+}  // namespace objscan::server

@@ -30,11 +30,11 @@
 /// few blocks per frame for an online discovery worker, and answers the live page's questions
 /// from other threads. Nothing here ever makes the fusing thread wait for a client: it holds a
 /// mutex only to swap a snapshot in, and every picture is made on the asking thread.
-namespace objscan::app {
+namespace objscan::server {
 
 struct LiveSettings {
-  std::string command;  ///< "scan" or "fuse", for the page
-  std::string source;   ///< as the user named it
+  std::string command;            ///< "scan" or "fuse", for the page
+  std::string source;             ///< as the user named it
   std::filesystem::path results;  ///< the output folder, served read-only under /results/
   /// Online discovery: a worker meshes a copy of the volume and finds objects in it every
   /// `discovery_interval_s`, on a thread that runs only when a core would otherwise idle.
@@ -69,7 +69,7 @@ struct LiveCounts {
 struct LiveFinal {
   std::string outcome;  ///< one line: "finished", "stopped by Ctrl-C", an error
   bool failed = false;
-  std::vector<LiveHypothesis> hypotheses;  ///< the final ranking (scan), best first
+  std::vector<LiveHypothesis> hypotheses;                  ///< the final ranking (scan), best first
   std::vector<std::pair<std::string, std::string>> files;  ///< label, name in the results folder
   /// The vertices of each of `hypotheses` (same order), to paint the last model picture with the
   /// final ranking's colours; empty: it keeps the last online round's.
@@ -132,7 +132,7 @@ class LiveSession {
   std::mutex mutex_;
   std::condition_variable changed_;  ///< the page's long polls wait on it
   std::condition_variable work_;     ///< the worker waits on it (never woken by a new frame)
-  std::uint64_t seq_ = 0;  ///< bumped by every change the page can see
+  std::uint64_t seq_ = 0;            ///< bumped by every change the page can see
   std::shared_ptr<const Snapshot> snapshot_;
   std::optional<LiveCounts> counts_;
   std::shared_ptr<const Objects> objects_;
@@ -167,4 +167,4 @@ class LiveSession {
   std::thread worker_;
 };
 
-}  // namespace objscan::app
+}  // namespace objscan::server

@@ -3,11 +3,11 @@
 #include <memory>
 #include <string>
 
-#include "http_server.h"
-#include "live_session.h"
+#include "objscan/server/http_server.h"
+#include "objscan/server/live_session.h"
 
 /// The live page's routes (`--serve` on scan and fuse), on http_server.h's server.
-namespace objscan::app {
+namespace objscan::server {
 
 /// Serves the live page for `session` until destroyed. Routes (GET and HEAD only):
 ///   /                 the page
@@ -35,4 +35,4 @@ class LiveServer {
   HttpServer server_;  ///< last: it stops before the session it serves is gone
 };
 
-}  // namespace objscan::app
+}  // namespace objscan::server

@@ -1,4 +1,4 @@
-#include "view_server.h"
+#include "objscan/server/view_server.h"
 
 #include <algorithm>
 #include <charconv>
@@ -22,7 +22,7 @@
 #include "objscan/report/results_io.h"
 #include "view_page.h"  // generated from view_page.html: kViewPage
 
-namespace objscan::app {
+namespace objscan::server {
 namespace {
 
 namespace fs = std::filesystem;
@@ -568,4 +568,4 @@ HttpReply ViewServer::undo(const HttpRequest& request) {
   }
 }
 
-}  // namespace objscan::app
+}  // namespace objscan::server

@@ -1,4 +1,4 @@
-#include "http_server.h"
+#include "objscan/server/http_server.h"
 
 #include <sys/resource.h>
 #include <sys/syscall.h>
@@ -21,7 +21,7 @@
 #include "objscan/core/clock.h"
 #include "objscan/core/log.h"
 
-namespace objscan::app {
+namespace objscan::server {
 namespace {
 
 namespace fs = std::filesystem;
@@ -130,12 +130,18 @@ void writeWithin(mg_connection* conn, std::string_view bytes, double seconds) {
 /// The Content-Type of a results file, by its extension.
 const char* typeOfFile(const fs::path& file) {
   static const std::pair<const char*, const char*> kTypes[] = {
-      {".html", "text/html; charset=utf-8"}, {".json", "application/json"},
-      {".png", "image/png"},                  {".jpg", "image/jpeg"},
-      {".txt", "text/plain; charset=utf-8"},  {".csv", "text/csv; charset=utf-8"},
-      {".svg", "image/svg+xml"},              {".glb", "model/gltf-binary"},
-      {".gltf", "model/gltf+json"},           {".obj", "model/obj"},
-      {".stl", "model/stl"},                  {".yml", "text/plain; charset=utf-8"}};
+      {".html", "text/html; charset=utf-8"},
+      {".json", "application/json"},
+      {".png", "image/png"},
+      {".jpg", "image/jpeg"},
+      {".txt", "text/plain; charset=utf-8"},
+      {".csv", "text/csv; charset=utf-8"},
+      {".svg", "image/svg+xml"},
+      {".glb", "model/gltf-binary"},
+      {".gltf", "model/gltf+json"},
+      {".obj", "model/obj"},
+      {".stl", "model/stl"},
+      {".yml", "text/plain; charset=utf-8"}};
   const std::string extension = file.extension().string();
   for (const auto& [e, type] : kTypes) {
     if (extension == e) return type;
@@ -174,7 +180,8 @@ void send(mg_connection* conn, const HttpReply& r, bool head) {
     const auto start = SteadyClock::now();
     std::string chunk(1 << 16, '\0');
     for (std::uintmax_t left = size; left > 0 && in;) {
-      in.read(chunk.data(), static_cast<std::streamsize>(std::min<std::uintmax_t>(chunk.size(), left)));
+      in.read(chunk.data(),
+              static_cast<std::streamsize>(std::min<std::uintmax_t>(chunk.size(), left)));
       const auto n = static_cast<std::size_t>(in.gcount());
       if (n == 0 || mg_write(conn, chunk.data(), n) <= 0) return;
       left -= n;
@@ -335,8 +342,7 @@ struct HttpServer::Impl {
     if (info->content_length < 0) return HttpReply::text(411, "a POST here gives its length");
     if (static_cast<std::uint64_t>(info->content_length) > options.max_body_bytes) {
       return HttpReply::text(413, "the body is larger than the " +
-                                      std::to_string(options.max_body_bytes) +
-                                      " bytes taken here");
+                                      std::to_string(options.max_body_bytes) + " bytes taken here");
     }
     body->resize(static_cast<std::size_t>(info->content_length));
     std::size_t got = 0;
@@ -366,14 +372,16 @@ ServeAddress parseServeAddress(const std::string& text, const std::string& flag)
                                 "65535 (0: any free port), as PORT or ADDRESS:PORT");
   }
   if (!isIpv4(address.host)) {
-    throw std::invalid_argument(flag + " '" + text + "': '" + address.host +
-                                "' is not an IPv4 address in dotted decimal without leading zeros " +
-                                "(e.g. 127.0.0.1, or 0.0.0.0 for every interface)");
+    throw std::invalid_argument(
+        flag + " '" + text + "': '" + address.host +
+        "' is not an IPv4 address in dotted decimal without leading zeros " +
+        "(e.g. 127.0.0.1, or 0.0.0.0 for every interface)");
   }
   if (const int first = std::atoi(address.host.c_str()); first >= 224) {
-    throw std::invalid_argument(flag + " '" + text + "': '" + address.host +
-                                "' is a multicast, reserved or broadcast address, which no browser " +
-                                "can reach a server on");
+    throw std::invalid_argument(
+        flag + " '" + text + "': '" + address.host +
+        "' is a multicast, reserved or broadcast address, which no browser " +
+        "can reach a server on");
   }
   return address;
 }
@@ -462,4 +470,4 @@ fs::path resultFile(const fs::path& folder, std::string_view relative) {
   return file;
 }
 
-}  // namespace objscan::app
+}  // namespace objscan::server
