@@ -2,26 +2,17 @@
 
 #include <cstdio>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "exit_codes.h"
 #include "objscan/capture/openni.h"
-#include "objscan/core/atomic_file.h"
-#include "objscan/core/output_folder.h"
-#include "objscan/core/ply_io.h"
-#include "objscan/core/trajectory.h"
 #include "objscan/fusion/pipeline.h"
+#include "objscan/pipeline/scan.h"
 #include "objscan/report/results_io.h"
-#include "options.h"
 #include "stop_signals.h"
 
 namespace objscan::app {
-
-std::string writeFused(const std::filesystem::path& out, const pipeline::FusedScene& fused) {
-  std::string mesh = encodePly(fused.mesh);
-  writeFileAtomically(out / report::kMeshFile, mesh);
-  writeTumTrajectory(out / report::kTrajectoryFile, fused.trajectory);
-  return mesh;
-}
 
 int reportSensorLoss(const pipeline::FuseStats& o) {
   if (o.sensor_lost.empty()) return kExitSuccess;
@@ -70,17 +61,25 @@ void printFuseSummary(const pipeline::FusedScene& fused, const std::filesystem::
   }
 }
 
-void addFusionSettings(report::Settings& settings, const pipeline::FusedScene& fused,
-                       const pipeline::FuseOptions& options) {
-  if (!options.config.volume.truncation_m) {
-    settings.resolved.push_back({"truncation", {exactText(options.config.volume.truncation())}});
+namespace {
+
+/// fuse's lines on stdout.
+class FusePrinter : public pipeline::ScanObserver {
+ public:
+  void fused(const pipeline::FusedScene& fused, const std::filesystem::path& out) override {
+    printFuseSummary(fused, out);
   }
-  // The flags record what was given; whether the volume carved is what was used.
-  settings.resolved.push_back(
-      {"carve", {options.config.volume.carve_free_space ? "true" : "false"}});
-  settings.intrinsics = fused.stats.intrinsics;
-  settings.intrinsics_origin = fused.stats.intrinsics_origin;
-}
+  void finished(const pipeline::ScanOutcome& outcome) override {
+    if (outcome.interrupted) {
+      std::printf(
+          "stopped by    Ctrl-C / SIGTERM: the outputs hold the %zu frames fused before "
+          "it\n",
+          outcome.fuse.frames_fused);
+    }
+  }
+};
+
+}  // namespace
 
 int runFuse(const FuseCommandOptions& options) {
   // The server first: a port that cannot be had is refused before anything is opened or written.
@@ -89,42 +88,34 @@ int runFuse(const FuseCommandOptions& options) {
   live_settings.source = options.fuse.source;
   live_settings.results = options.out;
   const std::unique_ptr<LiveRun> live = LiveRun::start(options.serve, live_settings);
-  pipeline::FusedScene fused;
-  OutputFolderLock lock;
+  pipeline::ScanOutcome outcome;
   try {
-    {
-      StopSignals signals;
-      pipeline::FuseLimits limits;
-      limits.stop = &StopSignals::flag();
-      limits.after_open = [&options, &lock] { lock = prepareOutputFolder(options.out); };
-      if (live) live->watch(limits);
-      fused = pipeline::fuseSource(options.fuse, limits);
-    }
-    if (live) live->stage("writing the mesh");
-    writeFused(options.out, fused);
-    report::Settings settings = options.settings;
-    addFusionSettings(settings, fused, options.fuse);
-    report::writeSettings(options.out / report::kSettingsFile, settings);
+    pipeline::ScanRequest request;
+    request.fuse = options.fuse;
+    request.discover = false;
+    request.out = options.out;
+    request.settings = options.settings;
+    FusePrinter printer;
+    std::vector<pipeline::ScanObserver*> observers = {&printer};
+    if (live) observers.push_back(live.get());
+    StopSignals signals;
+    request.limits.stop = &StopSignals::flag();
+    outcome = pipeline::runScan(std::move(request), observers);
   } catch (const std::exception& e) {
     if (live) live->finish(server::LiveFinal::without(std::string("failed: ") + e.what()), false);
     throw;
   }
-  printFuseSummary(fused, options.out);
-  if (fused.stats.interrupted) {
-    std::printf("stopped by    Ctrl-C / SIGTERM: the outputs hold the %zu frames fused before it\n",
-                fused.stats.frames_fused);
-  }
-  const int code = reportSensorLoss(fused.stats);
+  const int code = reportSensorLoss(outcome.fuse);
   if (live) {
     server::LiveFinal final;
-    final.outcome = fused.stats.interrupted ? "stopped by Ctrl-C: the mesh holds the frames fused"
-                    : fused.stats.sensor_lost.empty() ? "finished"
-                                                      : "sensor lost: " + fused.stats.sensor_lost;
+    final.outcome = outcome.interrupted ? "stopped by Ctrl-C: the mesh holds the frames fused"
+                    : outcome.fuse.sensor_lost.empty() ? "finished"
+                                                       : "sensor lost: " + outcome.fuse.sensor_lost;
     final.failed = code != kExitSuccess;
     final.files = {{"mesh", report::kMeshFile},
                    {"trajectory", report::kTrajectoryFile},
                    {"settings", report::kSettingsFile}};
-    live->finish(std::move(final), !fused.stats.interrupted);
+    live->finish(std::move(final), !outcome.interrupted);
   }
   return code;
 }

@@ -15,15 +15,6 @@ struct FuseCommandOptions {
   ServeOptions serve;         ///< --serve: the live page
 };
 
-/// Completes `settings` with what fusion resolved (the truncation used, the intrinsics and where
-/// they came from).
-void addFusionSettings(report::Settings& settings, const pipeline::FusedScene& fused,
-                       const pipeline::FuseOptions& options);
-
-/// Writes OUT/mesh.ply and OUT/trajectory.txt (each once, atomically) and returns the bytes of
-/// mesh.ply (for the catalog's content hash).
-std::string writeFused(const std::filesystem::path& out, const pipeline::FusedScene& fused);
-
 /// For a run whose sensor was lost: prints the one error line (after the summary) and returns
 /// exit code 1; otherwise returns 0.
 int reportSensorLoss(const pipeline::FuseStats& stats);

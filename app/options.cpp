@@ -203,16 +203,6 @@ report::Settings commandSettings(const CLI::App& sub) {
   return settings;
 }
 
-std::string exactText(float value) {
-  char text[32];
-  // The fewest digits that read back to the same float; 9 always do.
-  for (int digits = 6; digits <= 9; ++digits) {
-    std::snprintf(text, sizeof text, "%.*g", digits, static_cast<double>(value));
-    if (std::strtof(text, nullptr) == value) break;
-  }
-  return text;
-}
-
 CLI::Validator wholeNumberFrom(std::uint64_t min) {
   const std::string wanted = "must be a whole number of at least " + std::to_string(min);
   return CLI::Validator(

@@ -11,6 +11,7 @@
 #include "objscan/pipeline/fuse.h"
 #include "objscan/pipeline/pictures.h"
 #include "objscan/report/results.h"
+#include "objscan/report/results_io.h"
 
 // CLI11 is included by the sources that build the command line: it takes seconds to compile
 // at -O3, and most sources that include this header do not use it.
@@ -22,9 +23,7 @@ class Validator;
 /// Flags several commands share, each bound to the library's config it sets.
 namespace objscan::app {
 
-/// A number as the shortest text of at most 9 significant digits that reads back to the same
-/// float (settings.json must repeat a run exactly).
-std::string exactText(float value);
+using report::exactText;
 
 /// A whole number of at least `min` (frames, splits, vertices): refuses a sign, a fraction and a
 /// number too large for a count with "must be a whole number of at least MIN (got 'TEXT')",

@@ -51,10 +51,14 @@ LiveRun::LiveRun(const ServeOptions& options, const server::ServeAddress& addres
                  server::LiveSettings settings)
     : options_(options), session_(std::move(settings)), server_(session_, address) {}
 
-void LiveRun::watch(pipeline::FuseLimits& limits) {
-  limits.on_frame = [this](const pipeline::FrameEvent& e) { session_.onFrame(e); };
-  limits.extra_memory_bytes = [this] { return session_.extraMemoryBytes(); };
-  limits.before_meshing = [this] { session_.setStage("meshing the volume"); };
+void LiveRun::stageStarted(pipeline::ScanStage stage) {
+  if (stage != pipeline::ScanStage::kFusing) session_.setStage(pipeline::toString(stage));
+}
+
+void LiveRun::watchFusion(pipeline::FusionHooks& hooks) {
+  hooks.on_frame = [this](const pipeline::FrameEvent& e) { session_.onFrame(e); };
+  hooks.extra_memory_bytes = [this] { return session_.extraMemoryBytes(); };
+  hooks.before_meshing = [this] { session_.setStage("meshing the volume"); };
 }
 
 void LiveRun::finish(server::LiveFinal final, bool keep_serving) {

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "objscan/pipeline/fuse.h"
+#include "objscan/pipeline/scan.h"
 #include "objscan/server/live_server.h"
 #include "objscan/server/live_session.h"
 
@@ -29,16 +30,17 @@ struct ServeOptions {
 /// --serve, --serve-wait, --no-live-discovery, --live-discovery-every.
 void addServeOptions(CLI::App* sub, ServeOptions& o);
 
-/// A live session and its server, for one command run.
-class LiveRun {
+/// A live session and its server, for one command run; it watches the scan (frames, stages).
+class LiveRun : public pipeline::ScanObserver {
  public:
   /// Nothing when options.address is empty. Otherwise starts the server (std::invalid_argument,
   /// exit 2, when it cannot listen) and prints its address.
   static std::unique_ptr<LiveRun> start(const ServeOptions& options, server::LiveSettings settings);
 
   /// Makes fusion report every frame to the session.
-  void watch(pipeline::FuseLimits& limits);
-  void stage(const std::string& name) { session_.setStage(name); }
+  void watchFusion(pipeline::FusionHooks& hooks) override;
+  /// The stages after fusion (setStage ends the session's online discovery).
+  void stageStarted(pipeline::ScanStage stage) override;
   /// The run is over: the page shows `final`; then, with `keep_serving`, serves the results until
   /// Ctrl-C or --serve-wait (a run stopped by Ctrl-C ends at once).
   void finish(server::LiveFinal final, bool keep_serving = true);

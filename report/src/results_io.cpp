@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <optional>
 #include <string_view>
 #include <system_error>
@@ -111,6 +112,37 @@ std::optional<OrientedBox> boxFrom(const std::optional<Node>& node) {
 }
 
 }  // namespace
+
+std::string exactText(float value) {
+  char text[32];
+  // The fewest digits that read back to the same float; 9 always do.
+  for (int digits = 6; digits <= 9; ++digits) {
+    std::snprintf(text, sizeof text, "%.*g", digits, static_cast<double>(value));
+    if (std::strtof(text, nullptr) == value) break;
+  }
+  return text;
+}
+
+std::string writeMeshAndTrajectory(const std::filesystem::path& dir, const TriangleMesh& mesh,
+                                   const Trajectory& trajectory) {
+  std::string bytes = encodePly(mesh);
+  writeFileAtomically(dir / kMeshFile, bytes);
+  writeTumTrajectory(dir / kTrajectoryFile, trajectory);
+  return bytes;
+}
+
+void removeOutputsAfterTheMesh(const std::filesystem::path& dir) {
+  for (const char* name : {kHypothesesFile, kObjectsFolder, kRendersFolder, kEvaluationFile,
+                           kReportFile, kTimingsFile, kSettingsFile}) {
+    std::error_code ec;
+    if (std::filesystem::exists(dir / name, ec)) {
+      std::filesystem::remove_all(dir / name, ec);
+      if (ec) {
+        throw OutputError(dir / name, "cannot remove an earlier run's output: " + ec.message());
+      }
+    }
+  }
+}
 
 std::string rankFileName(std::size_t rank, const char* extension) {
   char name[48];

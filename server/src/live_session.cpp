@@ -105,6 +105,20 @@ void runOnlyWhenIdle() {
 
 }  // namespace
 
+void LiveFinal::addHypotheses(const discovery::SceneDiscovery& run, std::size_t shown) {
+  for (std::size_t i = 0; i < run.ranked.size() && i < shown; ++i) {
+    const discovery::Hypothesis& h = run.ranked[i].hypothesis;
+    hypotheses.push_back({static_cast<int>(i) + 1, h.score, h.segment.vertices.size(),
+                          h.segment.centroid, h.segment.extents});
+    const TriangleMesh& mesh = run.scenes.at(run.ranked[i].scene).mesh;
+    std::vector<Eigen::Vector3f>& vertices = painted.emplace_back();
+    vertices.reserve(h.segment.vertices.size());
+    for (const std::int32_t v : h.segment.vertices) {
+      vertices.push_back(mesh.positions[static_cast<std::size_t>(v)]);
+    }
+  }
+}
+
 struct LiveSession::Snapshot {
   std::uint64_t seq = 0;
   cv::Mat color_rgb;

@@ -19,6 +19,10 @@
 /// missing or of the wrong type (a damaged file, or one an older objscan wrote).
 namespace objscan::report {
 
+/// A number as the shortest text of at most 9 significant digits that reads back to the same
+/// float: settings.json must repeat a run exactly.
+std::string exactText(float value);
+
 /// The names of a results folder's files.
 inline constexpr const char* kMeshFile = "mesh.ply";
 inline constexpr const char* kTrajectoryFile = "trajectory.txt";
@@ -34,6 +38,18 @@ inline constexpr const char* kReportFile = "report.html";
 
 /// The file of rank `rank` in objects/ (".ply") or renders/ (".png"): rank_001.ply, ...
 std::string rankFileName(std::size_t rank, const char* extension);
+
+// ---- mesh.ply and trajectory.txt ---------------------------------------------------------------
+
+/// Writes DIR/mesh.ply and DIR/trajectory.txt (each once, atomically) and returns the bytes of
+/// mesh.ply (a catalog hashes them).
+std::string writeMeshAndTrajectory(const std::filesystem::path& dir, const TriangleMesh& mesh,
+                                   const Trajectory& trajectory);
+
+/// Removes what an earlier run derived from an earlier mesh.ply (hypotheses.json, objects/,
+/// renders/, evaluation.json, report.html, timings.json, settings.json): a new mesh makes them
+/// stale. Throws OutputError when one cannot be removed.
+void removeOutputsAfterTheMesh(const std::filesystem::path& dir);
 
 // ---- hypotheses.json and objects/ --------------------------------------------------------------
 

@@ -82,6 +82,8 @@ struct LiveFinal {
     f.failed = true;
     return f;
   }
+  /// Adds the first `shown` hypotheses of a discovery run, and their vertices to paint.
+  void addHypotheses(const discovery::SceneDiscovery& run, std::size_t shown);
 };
 
 class LiveSession {
