@@ -1,6 +1,9 @@
 #pragma once
 
 #include <functional>
+#include <memory>
+#include <string>
+#include <vector>
 
 // CLI11 is included by the sources that build the command line: it takes seconds to compile
 // at -O3, and most sources that include this header do not use it.
@@ -28,5 +31,8 @@ Command addTrainCommand(CLI::App& app);
 Command addRenderCommand(CLI::App& app);
 Command addScanCommand(CLI::App& app);
 Command addViewCommand(CLI::App& app);
+/// `scan_args`: what follows `--` on the command line (run() takes it off before parsing), the
+/// options of every scan.
+Command addBatchCommand(CLI::App& app, std::shared_ptr<const std::vector<std::string>> scan_args);
 
 }  // namespace objscan::app

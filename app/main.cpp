@@ -85,10 +85,12 @@ int run(int argc, char** argv) {
       "130 interrupted (Ctrl-C; what was written is complete).\n"
       "Run 'objscan <command> --help' for a command's options.\n");
   addConfigOption(app);
+  const auto batch_scan_args = std::make_shared<std::vector<std::string>>();
   const std::vector<Command> commands = {
-      addInfoCommand(app),   addSynthCommand(app),    addDevicesCommand(app), addRecordCommand(app),
-      addFuseCommand(app),   addDiscoverCommand(app), addEvalCommand(app),    addTrainCommand(app),
-      addRenderCommand(app), addScanCommand(app),    addViewCommand(app)};
+      addInfoCommand(app),   addSynthCommand(app), addDevicesCommand(app),
+      addRecordCommand(app), addFuseCommand(app),  addDiscoverCommand(app),
+      addEvalCommand(app),   addTrainCommand(app), addRenderCommand(app),
+      addScanCommand(app),   addViewCommand(app),  addBatchCommand(app, batch_scan_args)};
 
   // "objscan help [COMMAND]" is "objscan [COMMAND] --help", as git and cargo have it.
   std::vector<std::string> args(argv + 1, argv + argc);
@@ -102,6 +104,12 @@ int run(int argc, char** argv) {
     }
     args.resize(std::min<std::size_t>(args.size(), 1));
     args.emplace_back("--help");
+  }
+  // `objscan batch ... -- SCAN OPTIONS`: what follows -- is every scan's, not batch's.
+  const auto dashes = std::find(args.begin(), args.end(), std::string("--"));
+  if (std::find(args.begin(), dashes, std::string("batch")) != dashes && dashes != args.end()) {
+    batch_scan_args->assign(dashes + 1, args.end());
+    args.erase(dashes, args.end());
   }
   std::reverse(args.begin(), args.end());  // CLI11 takes its vector in reverse order
   try {

@@ -125,26 +125,6 @@ bool namesPaths(const std::string& option) {
   return kPathOptions.contains(option);
 }
 
-/// A file or folder given relative to the working directory, made absolute, so that
-/// `--config OUT/settings.json` reads the same files from any directory. Sources that are not
-/// paths stay as they are: synth:<seed>, live[:uri], --poses groundtruth; virtual:<source> has
-/// its source made absolute.
-std::string absolutePath(const std::string& value) {
-  const auto starts = [&](std::string_view prefix) { return value.rfind(prefix, 0) == 0; };
-  if (value.empty() || value == "live" || value == "groundtruth" || starts("live:") ||
-      starts("synth:")) {
-    return value;
-  }
-  if (starts("virtual:")) {
-    const std::size_t begin = std::string_view("virtual:").size();
-    const std::size_t query = std::min(value.find('?', begin), value.size());
-    return "virtual:" + absolutePath(value.substr(begin, query - begin)) + value.substr(query);
-  }
-  std::error_code ec;
-  const std::filesystem::path absolute = std::filesystem::absolute(value, ec);
-  return ec ? value : absolute.lexically_normal().string();
-}
-
 /// --config names a regular file of at most report::kMaxSettingsBytes. Checked before CLI11 opens
 /// it (its results are validated when it asks for the file's name): opening a FIFO would wait for
 /// a writer forever.
@@ -167,6 +147,22 @@ const CLI::Validator settingsFileCheck(
     "");
 
 }  // namespace
+
+std::string absolutePath(const std::string& value) {
+  const auto starts = [&](std::string_view prefix) { return value.rfind(prefix, 0) == 0; };
+  if (value.empty() || value == "live" || value == "groundtruth" || starts("live:") ||
+      starts("synth:")) {
+    return value;
+  }
+  if (starts("virtual:")) {
+    const std::size_t begin = std::string_view("virtual:").size();
+    const std::size_t query = std::min(value.find('?', begin), value.size());
+    return "virtual:" + absolutePath(value.substr(begin, query - begin)) + value.substr(query);
+  }
+  std::error_code ec;
+  const std::filesystem::path absolute = std::filesystem::absolute(value, ec);
+  return ec ? value : absolute.lexically_normal().string();
+}
 
 void addConfigOption(CLI::App& app) {
   // On the top level, as CLI11 reads config files only there; `objscan scan --config FILE` reaches

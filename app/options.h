@@ -25,6 +25,12 @@ namespace objscan::app {
 
 using report::exactText;
 
+/// A file or folder given relative to the working directory, made absolute (as settings.json
+/// records it, so that `--config OUT/settings.json` reads the same files from any directory).
+/// Sources that are not paths stay as they are: synth:<seed>, live[:uri], --poses groundtruth;
+/// virtual:<source> has its source made absolute.
+std::string absolutePath(const std::string& value);
+
 /// A whole number of at least `min` (frames, splits, vertices): refuses a sign, a fraction and a
 /// number too large for a count with "must be a whole number of at least MIN (got 'TEXT')",
 /// where CLI11's own checks print a 300-digit bound or wrap around to 18446744073709551615.

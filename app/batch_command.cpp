@@ -1,0 +1,451 @@
+#include "batch_command.h"
+
+#include <fcntl.h>
+#include <sched.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <stdexcept>
+#include <thread>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include "commands.h"
+#include "exit_codes.h"
+#include "objscan/core/atomic_file.h"
+#include "objscan/core/clock.h"
+#include "objscan/core/error.h"
+#include "objscan/core/log.h"
+#include "objscan/core/memory.h"
+#include "objscan/core/output_folder.h"
+#include "objscan/core/progress.h"
+#include "objscan/pipeline/sources.h"
+#include "objscan/report/results_io.h"
+#include "options.h"
+#include "stop_signals.h"
+
+extern char** environ;
+
+namespace objscan::app {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// What one scan of a batch may take at most, for --jobs' default: the peak resident memory of
+/// `objscan scan` on a 300-frame table top (docs/batch.md), with room to spare.
+constexpr std::uint64_t kMemoryPerScan = 1536ull << 20;  // 1.5 GiB
+
+/// Scan options a batch sets itself, or that make no sense for a recording.
+const char* const kBatchOwned[] = {"--out", "--catalog", "--serve", "--serve-wait", "--record",
+                                   "--config"};
+
+std::string sanitized(std::string text) {
+  for (char& c : text) {
+    const unsigned char u = static_cast<unsigned char>(c);
+    if (!(std::isalnum(u) || c == '-' || c == '.' || c == '_')) c = '_';
+  }
+  return text;
+}
+
+unsigned defaultJobs() {
+  cpu_set_t set;
+  const int cores = sched_getaffinity(0, sizeof set, &set) == 0
+                        ? CPU_COUNT(&set)
+                        : static_cast<int>(std::thread::hardware_concurrency());
+  const std::uint64_t most = static_cast<std::uint64_t>(std::max(1, cores));
+  const std::optional<std::uint64_t> memory = availableMemoryBytes();
+  if (!memory) return static_cast<unsigned>(most);
+  return static_cast<unsigned>(std::clamp<std::uint64_t>(*memory / kMemoryPerScan, 1, most));
+}
+
+/// Checks the scan options by parsing them as `objscan scan` parses them, before any scan
+/// starts; returns whether they say --no-catalog (then the scans get no catalog of the batch's).
+bool checkScanArgs(const std::vector<std::string>& args, const std::string& source) {
+  for (const std::string& a : args) {
+    for (const char* owned : kBatchOwned) {
+      if (a == owned || a.rfind(std::string(owned) + "=", 0) == 0) {
+        throw std::invalid_argument(std::string("after --: ") + owned +
+                                    " is not a scan option a batch takes (it sets the results "
+                                    "folders and catalogs itself)");
+      }
+    }
+  }
+  CLI::App parser{"objscan", "objscan"};
+  const Command scan = addScanCommand(parser);
+  std::vector<std::string> argv = {"objscan", "scan", "--out", "unused"};
+  argv.insert(argv.end(), args.begin(), args.end());
+  argv.insert(argv.end(), {"--", source});
+  std::vector<const char*> raw;
+  for (const std::string& a : argv) raw.push_back(a.c_str());
+  try {
+    parser.parse(static_cast<int>(raw.size()), raw.data());
+  } catch (const CLI::CallForHelp&) {
+    throw std::invalid_argument("after --: run 'objscan scan --help' for the scan options");
+  } catch (const CLI::ParseError& e) {
+    throw std::invalid_argument(std::string("after --: ") + e.what() +
+                                " (run 'objscan scan --help' for the scan options)");
+  }
+  return scan.sub->get_option("--no-catalog")->as<bool>();
+}
+
+/// Opens each source as scan would (a missing, unreadable or damaged recording is an error now,
+/// not after an hour of the others) and gives each a results folder name of its own.
+std::vector<std::pair<std::string, std::string>> checkedSources(
+    const std::vector<std::string>& sources) {
+  std::vector<std::pair<std::string, std::string>> named;  // name, source
+  std::map<std::string, std::string> by_name;
+  for (const std::string& source : sources) {
+    const std::string name = batchName(source);
+    if (const auto [it, fresh] = by_name.emplace(name, source); !fresh) {
+      throw std::invalid_argument(source + ": its results folder would be " + name +
+                                  ", as that of " + it->second +
+                                  " (rename one, or give it from another folder name)");
+    }
+    named.emplace_back(name, source);
+  }
+  ProgressBar progress("checking sources", sources.size());
+  for (const std::string& source : sources) {
+    if (source.rfind("synth:", 0) != 0) {
+      const fs::path path(source);
+      if (!fs::exists(path)) throw InputError(path, "missing");
+    }
+    pipeline::openFrameSource(source, {});
+    progress.advance();
+  }
+  return named;
+}
+
+/// Starts `objscan scan` in a process group of its own (a Ctrl-C at the terminal reaches the
+/// batch, which passes it on), its output appended to `log`, no input, no other open file.
+pid_t spawnScan(const std::vector<std::string>& args, const fs::path& log) {
+  posix_spawn_file_actions_t files;
+  posix_spawn_file_actions_init(&files);
+  posix_spawn_file_actions_addopen(&files, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
+  posix_spawn_file_actions_addopen(&files, STDOUT_FILENO, log.c_str(),
+                                   O_WRONLY | O_CREAT | O_APPEND, 0644);
+  posix_spawn_file_actions_adddup2(&files, STDOUT_FILENO, STDERR_FILENO);
+  posix_spawn_file_actions_addclosefrom_np(&files, 3);
+  posix_spawnattr_t attributes;
+  posix_spawnattr_init(&attributes);
+  posix_spawnattr_setflags(&attributes, POSIX_SPAWN_SETPGROUP);
+  posix_spawnattr_setpgroup(&attributes, 0);
+  std::vector<char*> argv;
+  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  pid_t pid = -1;
+  // The running binary itself, even if its file was replaced since (a rebuild mid-batch).
+  const int error = posix_spawn(&pid, "/proc/self/exe", &files, &attributes, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&files);
+  posix_spawnattr_destroy(&attributes);
+  if (error != 0) throw std::runtime_error(std::string("cannot start it: ") + std::strerror(error));
+  return pid;
+}
+
+/// The line a run's part of a log begins with.
+constexpr std::string_view kLogHeader = "---- objscan batch: ";
+
+/// The last error line of the latest run in a scan's log, for the batch's summary.
+std::string lastErrorLine(const fs::path& log) {
+  std::ifstream in(log);
+  std::string line, error;
+  while (std::getline(in, line)) {
+    if (line.rfind(kLogHeader, 0) == 0) error.clear();
+    if (line.rfind("objscan: error: ", 0) == 0) error = line.substr(16);
+  }
+  return error.empty() ? "see " + log.string() : error;
+}
+
+}  // namespace
+
+std::string batchName(const std::string& source) {
+  if (pipeline::isLiveSource(source)) {
+    throw std::invalid_argument(source +
+                                ": a batch scans recordings; a sensor is scanned with objscan scan");
+  }
+  std::string name;
+  if (source.rfind("synth:", 0) == 0) {
+    name = "synth_" + sanitized(source.substr(6));
+  } else {
+    // "." and "dir/" name the folder they are.
+    std::error_code ec;
+    fs::path path = fs::weakly_canonical(fs::path(source), ec);
+    if (ec) path = fs::path(source).lexically_normal();
+    while (!path.empty() && !path.has_filename() && path != path.root_path()) {
+      path = path.parent_path();
+    }
+    name = sanitized(path.extension() == ".oni" ? path.stem().string() : path.filename().string());
+  }
+  if (name.empty() || name == "." || name == ".." || name == "catalogs" || name == "logs" ||
+      name == "batch.json") {
+    throw std::invalid_argument(source + ": gives no results folder name of its own (" +
+                                (name.empty() ? std::string("none") : name) + ")");
+  }
+  return name;
+}
+
+std::vector<std::string> readSourceList(const fs::path& file) {
+  std::ifstream in(file);
+  if (!fs::is_regular_file(file) || !in) {
+    throw InputError(file, fs::exists(file) ? "cannot be read as a list of sources" : "missing");
+  }
+  std::vector<std::string> sources;
+  std::string line;
+  while (std::getline(in, line)) {
+    const auto first = line.find_first_not_of(" \t\r");
+    if (first == std::string::npos || line[first] == '#') continue;
+    const auto last = line.find_last_not_of(" \t\r");
+    sources.push_back(line.substr(first, last - first + 1));
+  }
+  return sources;
+}
+
+bool scanComplete(const fs::path& dir, const std::string& source) {
+  try {
+    if (!fs::is_regular_file(dir / report::kReportFile)) return false;
+    const report::Timings timings = report::readTimings(dir / report::kTimingsFile);
+    if (timings.interrupted || !timings.sensor_lost.empty()) return false;
+    report::readHypotheses(dir / report::kHypothesesFile);
+    // Of this source, not of another that gave the same name in an earlier batch.
+    for (const report::OptionSetting& o : report::readSettings(dir / report::kSettingsFile).options) {
+      if (o.name == "source") return o.values == std::vector<std::string>{absolutePath(source)};
+    }
+    return false;
+  } catch (const std::exception&) {
+    return false;  // missing or damaged: scanned again
+  }
+}
+
+namespace {
+
+/// The scans a batch runs, and what became of them.
+class Scans {
+ public:
+  Scans(const BatchCommandOptions& options, std::vector<std::pair<std::string, std::string>> named,
+        bool no_catalog)
+      : options_(options), named_(std::move(named)), no_catalog_(no_catalog) {}
+  ~Scans() { abandon(); }
+  Scans(const Scans&) = delete;
+  Scans& operator=(const Scans&) = delete;
+
+  /// Runs the scans of `pending` (indices into the named sources), `jobs` at a time. Returns
+  /// false when stopped (Ctrl-C / SIGTERM).
+  bool run(const std::vector<std::size_t>& pending, unsigned jobs) {
+    ProgressBar progress(pending.empty() ? "" : "batch", pending.size(),  // "": no bar
+                         ProgressBar::Style::kLines);
+    std::size_t next = 0;
+    while ((stops_ == 0 && next < pending.size()) || !running_.empty()) {
+      if (StopSignals::stopRequested()) {
+        // The first stop asks the scans to stop as scan does (they keep what they wrote); a
+        // second one ends them.
+        StopSignals::clear();
+        for (const Job& job : running_) ::kill(job.pid, stops_ == 0 ? SIGINT : SIGKILL);
+        ++stops_;
+      }
+      while (stops_ == 0 && !StopSignals::stopRequested() && next < pending.size() &&
+             running_.size() < jobs) {
+        start(pending[next++]);
+      }
+      if (!reap()) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      progress.advance(ended_ - progress.done());
+    }
+    progress.finish();
+    return stops_ == 0;
+  }
+
+  std::size_t done() const { return done_; }
+  std::size_t failed() const { return failed_; }
+
+ private:
+  struct Job {
+    pid_t pid = -1;
+    std::size_t index = 0;
+    SteadyClock::time_point start;
+  };
+
+  fs::path logOf(const std::string& name) const { return options_.out / "logs" / (name + ".log"); }
+
+  void start(std::size_t index) {
+    const auto& [name, source] = named_[index];
+    std::vector<std::string> args = {"objscan", "scan", "--out", (options_.out / name).string()};
+    if (!no_catalog_) {
+      args.insert(args.end(),
+                  {"--catalog", (options_.out / "catalogs" / (name + ".sqlite")).string()});
+    }
+    args.insert(args.end(), options_.scan_args.begin(), options_.scan_args.end());
+    args.insert(args.end(), {"--", source});  // a source that starts with '-' is still one
+    const fs::path log = logOf(name);
+    {
+      std::ofstream header(log, std::ios::app);
+      header << kLogHeader << std::time(nullptr) << " (seconds since 1970):";
+      for (const std::string& a : args) header << ' ' << a;
+      header << '\n';
+    }
+    log::info("started       " + name);
+    try {
+      running_.push_back({spawnScan(args, log), index, SteadyClock::now()});
+    } catch (const std::exception& e) {
+      ended(index, 0.0, std::string("not started: ") + e.what());
+    }
+  }
+
+  /// Collects every scan that ended; false when none had.
+  bool reap() {
+    bool any = false;
+    for (auto it = running_.begin(); it != running_.end();) {
+      int status = 0;
+      const pid_t pid = ::waitpid(it->pid, &status, WNOHANG);
+      if (pid == 0 || (pid < 0 && errno == EINTR)) {
+        ++it;
+        continue;
+      }
+      any = true;
+      const double seconds = secondsSince(it->start);
+      const std::size_t index = it->index;
+      it = running_.erase(it);
+      if (pid < 0) {
+        ended(index, seconds, std::string("lost track of it: ") + std::strerror(errno));
+      } else if (WIFEXITED(status) && WEXITSTATUS(status) == kExitSuccess) {
+        std::printf("done          %s in %.1f s\n", named_[index].first.c_str(), seconds);
+        std::fflush(stdout);
+        ++done_;
+        ++ended_;
+      } else if (stops_ > 0) {
+        std::printf("stopped       %s after %.1f s (%s)\n", named_[index].first.c_str(), seconds,
+                    exitText(status).c_str());
+        std::fflush(stdout);
+        ++ended_;
+      } else {
+        ended(index, seconds, exitText(status) + ": " + lastErrorLine(logOf(named_[index].first)));
+      }
+    }
+    return any;
+  }
+
+  /// A scan that failed: said on stderr, so that it shows with --quiet too.
+  void ended(std::size_t index, double seconds, const std::string& why) {
+    char after[32];
+    std::snprintf(after, sizeof after, "%.1f", seconds);
+    log::error(named_[index].first + " (" + named_[index].second + ") failed after " + after +
+               " s, " + why);
+    ++failed_;
+    ++ended_;
+  }
+
+  /// On an exception: the scans still running are ended, so none outlives the batch.
+  void abandon() noexcept {
+    for (const Job& job : running_) ::kill(job.pid, SIGKILL);
+    for (const Job& job : running_) ::waitpid(job.pid, nullptr, 0);
+    running_.clear();
+  }
+
+  static std::string exitText(int status) {
+    if (WIFEXITED(status)) return "exit " + std::to_string(WEXITSTATUS(status));
+    if (WIFSIGNALED(status)) return std::string("killed by signal ") + strsignal(WTERMSIG(status));
+    return "ended";
+  }
+
+  const BatchCommandOptions& options_;
+  std::vector<std::pair<std::string, std::string>> named_;
+  bool no_catalog_;
+  std::vector<Job> running_;
+  std::size_t done_ = 0, failed_ = 0, ended_ = 0;
+  int stops_ = 0;
+};
+
+}  // namespace
+
+int runBatch(const BatchCommandOptions& options) {
+  std::vector<std::string> sources = options.sources;
+  if (!options.list.empty()) {
+    const std::vector<std::string> listed = readSourceList(options.list);
+    sources.insert(sources.end(), listed.begin(), listed.end());
+  }
+  if (sources.empty()) {
+    throw std::invalid_argument("no sources: give recordings, folders or synth:<seed>, or --list");
+  }
+  const bool no_catalog = checkScanArgs(options.scan_args, sources.front());
+  std::vector<std::pair<std::string, std::string>> named = checkedSources(sources);
+
+  const OutputFolderLock lock = prepareOutputFolder(options.out);
+  fs::create_directories(options.out / "logs");
+  if (!no_catalog) fs::create_directories(options.out / "catalogs");
+  nlohmann::json batch = {{"format", "objscan batch, version 1"},
+                          {"scan_options", options.scan_args},
+                          {"recordings", nlohmann::json::array()}};
+  for (const auto& [name, source] : named) {
+    batch["recordings"].push_back({{"name", name}, {"source", source}});
+  }
+  writeFileAtomically(options.out / "batch.json", batch.dump(2) + "\n");
+
+  std::vector<std::size_t> pending;
+  std::size_t skipped = 0;
+  for (std::size_t i = 0; i < named.size(); ++i) {
+    if (scanComplete(options.out / named[i].first, named[i].second)) {
+      std::printf("complete      %s (an earlier run's results: skipped)\n", named[i].first.c_str());
+      ++skipped;
+    } else {
+      pending.push_back(i);
+    }
+  }
+  const unsigned jobs = std::max(1u, options.jobs.value_or(defaultJobs()));
+  std::printf("batch         %zu recordings, %zu to scan, %u at a time -> %s\n", named.size(),
+              pending.size(), jobs, options.out.c_str());
+  std::fflush(stdout);
+
+  // Ended scans are collected by pid: not if SIGCHLD were ignored (that survives exec).
+  std::signal(SIGCHLD, SIG_DFL);
+  StopSignals signals;
+  const auto start = SteadyClock::now();
+  Scans scans(options, std::move(named), no_catalog);
+  const bool finished = scans.run(pending, jobs);
+  std::printf("batch         %zu scanned, %zu failed, %zu complete before, in %.1f s; logs in %s\n",
+              scans.done(), scans.failed(), skipped, secondsSince(start),
+              (options.out / "logs").c_str());
+  if (!finished) {
+    std::printf("stopped by    Ctrl-C / SIGTERM: run the same batch again to scan the rest\n");
+    return kExitInterrupted;
+  }
+  return scans.failed() == 0 ? kExitSuccess : kExitRuntimeFailure;
+}
+
+Command addBatchCommand(CLI::App& app, std::shared_ptr<const std::vector<std::string>> scan_args) {
+  auto options = std::make_shared<BatchCommandOptions>();
+  CLI::App* batch = app.add_subcommand(
+      "batch", "Scan many recordings: one scan each into OUT/<name>/, several at a time");
+  batch->footer(
+      "Options after -- go to every scan (objscan scan's, but --out, --catalog, --serve, "
+      "--record and --config).\n"
+      "Examples:\n"
+      "  objscan batch recordings/*.oni --out out/all\n"
+      "  objscan batch --list scans.txt --out out/all --jobs 2 -- --frames 300 --top 8\n"
+      "Run it again after a failure or Ctrl-C: complete results are kept, the rest is scanned.");
+  batch->add_option("sources", options->sources,
+                    "Recordings (X.oni), TUM or 7-Scenes folders, synth:<seed>");
+  batch->add_option("--list", options->list,
+                    "A file of sources, one a line (blank lines and # comments skipped)");
+  batch->add_option("--out", options->out,
+                    "Folder for the results: OUT/<name>/ a recording, OUT/logs/, OUT/catalogs/, "
+                    "OUT/batch.json")
+      ->required();
+  batch->add_option("--jobs", options->jobs,
+                    "Scans at a time (default: the cores, fewer when memory is short)")
+      ->check(wholeNumberFrom(1));
+  return {batch, [options, scan_args] {
+            options->scan_args = *scan_args;
+            return runBatch(*options);
+          }};
+}
+
+}  // namespace objscan::app

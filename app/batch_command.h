@@ -1,0 +1,40 @@
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace objscan::app {
+
+struct BatchCommandOptions {
+  std::vector<std::string> sources;  ///< as scan takes them: recordings, folders, synth:<seed>
+  std::filesystem::path list;        ///< --list FILE: one source a line (# comments)
+  std::filesystem::path out;
+  std::optional<unsigned> jobs;        ///< --jobs; nothing: what the machine allows
+  std::vector<std::string> scan_args;  ///< after --: options for every scan
+};
+
+/// A recording's results folder name in a batch: a file's name without .oni, a folder's name,
+/// synth_<seed>[_options] for synth:<seed>[,options]. Throws std::invalid_argument for a source
+/// a batch cannot take (a live sensor) or one that gives no name.
+std::string batchName(const std::string& source);
+
+/// The sources of a --list file: one a line, blank lines and lines starting with # skipped,
+/// spaces around a source trimmed. Throws InputError naming the file when it cannot be read.
+std::vector<std::string> readSourceList(const std::filesystem::path& file);
+
+/// Whether DIR holds the complete results of a scan of `source` (its settings.json names it)
+/// that was not cut short: hypotheses.json, report.html and timings.json, read back by the
+/// results model, with no interruption and no sensor lost. A batch run again skips those.
+bool scanComplete(const std::filesystem::path& dir, const std::string& source);
+
+/// `objscan batch`: one `objscan scan` per source into OUT/<name>/, --jobs at a time, each with
+/// its own catalog (OUT/catalogs/<name>.sqlite) and log (OUT/logs/<name>.log); a line per
+/// recording as it ends and a bar over all. Everything is checked before the first scan starts.
+/// Returns 0 when every recording has complete results, 1 when one failed (the others are still
+/// scanned), 130 when stopped by Ctrl-C / SIGTERM (passed on to the scans, which keep what they
+/// wrote).
+int runBatch(const BatchCommandOptions& options);
+
+}  // namespace objscan::app

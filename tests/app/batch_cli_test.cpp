@@ -1,0 +1,193 @@
+// objscan batch against the real binary: one scan per recording, several at a time, a rerun that
+// keeps complete results, a failed recording among good ones, Ctrl-C, and bad lists refused
+// before anything runs.
+#include <csignal>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "cli_expect.h"
+#include "objscan/core/atomic_file.h"
+#include "objscan/discovery/catalog.h"
+#include "objscan/report/results_io.h"
+#include "test_support.h"
+
+namespace objscan {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::objscan;
+using testing::ProcessResult;
+using testing::TempDir;
+
+/// Short synthetic recordings: a scan of each takes a few seconds.
+const std::vector<std::string> kSources = {"synth:3,frames=6,objects=2",
+                                           "synth:4,frames=6,objects=2",
+                                           "synth:5,frames=6,objects=2"};
+const std::vector<std::string> kNames = {"synth_3_frames_6_objects_2", "synth_4_frames_6_objects_2",
+                                         "synth_5_frames_6_objects_2"};
+
+/// batch SOURCES... --out OUT --jobs 2 -- --no-ground-truth --top 2
+std::vector<std::string> batchArgs(const fs::path& out, const std::vector<std::string>& sources) {
+  std::vector<std::string> args = {"batch"};
+  args.insert(args.end(), sources.begin(), sources.end());
+  args.insert(args.end(), {"--out", out.string(), "--jobs", "2", "--", "--no-ground-truth",
+                           "--top", "2"});
+  return args;
+}
+
+std::size_t count(const std::string& text, const std::string& needle) {
+  std::size_t n = 0;
+  for (std::size_t at = text.find(needle); at != std::string::npos; at = text.find(needle, at + 1)) {
+    ++n;
+  }
+  return n;
+}
+
+TEST(BatchCli, ScansEachRecordingIntoItsOwnFolderAndARerunKeepsCompleteResults) {
+  TempDir dir;
+  const fs::path out = dir / "all";
+  const ProcessResult r = objscan(batchArgs(out, kSources));
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_EQ(count(r.out, "\ndone          "), 3u) << r.out;
+  for (std::size_t i = 0; i < kSources.size(); ++i) {
+    const fs::path scan = out / kNames[i];
+    // Each is a complete scan of its own source, with the scan options after --, and its own
+    // catalog holding that one scene.
+    const report::Settings settings = report::readSettings(scan / report::kSettingsFile);
+    EXPECT_EQ(settings.command, "scan");
+    bool source_found = false, top_found = false;
+    for (const report::OptionSetting& o : settings.options) {
+      source_found |= o.name == "source" && o.values == std::vector<std::string>{kSources[i]};
+      top_found |= o.name == "top" && o.values == std::vector<std::string>{"2"};
+    }
+    EXPECT_TRUE(source_found) << kNames[i];
+    EXPECT_TRUE(top_found) << kNames[i];
+    EXPECT_FALSE(report::readTimings(scan / report::kTimingsFile).interrupted);
+    EXPECT_FALSE(report::readHypotheses(scan / report::kHypothesesFile).hypotheses.empty());
+    EXPECT_TRUE(fs::is_regular_file(scan / report::kReportFile));
+    EXPECT_EQ(discovery::Catalog(out / "catalogs" / (kNames[i] + ".sqlite")).scenes().size(), 1u);
+    EXPECT_TRUE(fs::is_regular_file(out / "logs" / (kNames[i] + ".log")));
+  }
+  const auto written = fs::last_write_time(out / kNames[1] / report::kHypothesesFile);
+
+  // Again: nothing to do, nothing rewritten.
+  const ProcessResult again = objscan(batchArgs(out, kSources));
+  ASSERT_EQ(again.exit_code, 0) << again.out << again.err;
+  EXPECT_EQ(count(again.out, "\ncomplete      "), 2u) << again.out;  // the first has no \n
+  EXPECT_EQ(count(again.out, "complete      "), 3u) << again.out;
+  EXPECT_EQ(count(again.out, "done          "), 0u) << again.out;
+  EXPECT_EQ(fs::last_write_time(out / kNames[1] / report::kHypothesesFile), written);
+}
+
+TEST(BatchCli, AFailedRecordingIsReportedTheOthersAreScannedAndARerunFillsTheGap) {
+  TempDir dir;
+  const fs::path out = dir / "all";
+  fs::create_directories(out);
+  // A file where the second recording's folder would go: its scan fails, the batch goes on.
+  testing::writeBytes(out / kNames[1], "in the way");
+  const ProcessResult r = objscan(batchArgs(out, kSources));
+  EXPECT_EQ(r.exit_code, 1) << r.out << r.err;
+  // On stderr, so that --quiet shows it too: which recording, and why, from its scan.
+  EXPECT_NE(r.err.find("error: " + kNames[1] + " (" + kSources[1] + ") failed after "),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("exit 1: " + (out / kNames[1]).string()), std::string::npos) << r.err;
+  EXPECT_EQ(count(r.out, "done          "), 2u) << r.out;
+  EXPECT_NE(r.out.find("2 scanned, 1 failed"), std::string::npos) << r.out;
+
+  fs::remove(out / kNames[1]);
+  const ProcessResult again = objscan(batchArgs(out, kSources));
+  EXPECT_EQ(again.exit_code, 0) << again.out << again.err;
+  EXPECT_EQ(count(again.out, "done          "), 1u) << again.out;
+  EXPECT_NE(again.out.find("done          " + kNames[1]), std::string::npos) << again.out;
+  EXPECT_EQ(count(again.out, "complete      "), 2u) << again.out;
+}
+
+TEST(BatchCli, CtrlCStopsTheScansAndARerunFinishesThem) {
+  TempDir dir;
+  const fs::path out = dir / "all";
+  // Longer recordings: both scans are still fusing when the stop comes.
+  const std::vector<std::string> sources = {"synth:3,frames=60,objects=2",
+                                            "synth:4,frames=60,objects=2",
+                                            "synth:5,frames=60,objects=2"};
+  std::vector<std::string> args = batchArgs(out, sources);
+  args.insert(args.begin(), OBJSCAN_EXE);
+  testing::ProcessOptions options;
+  options.signal = SIGINT;
+  options.signal_when = "started       synth_4_frames_60_objects_2";
+  options.signal_delay_ms = 500;
+  const ProcessResult r = testing::runProcess(args, options);
+  EXPECT_EQ(r.exit_code, 130) << r.out << r.err;
+  // Both running scans were told, and stopped as a scan stops on Ctrl-C (exit 130), keeping
+  // what they had; the third never started.
+  EXPECT_EQ(count(r.out, "stopped       "), 2u) << r.out;
+  EXPECT_EQ(count(r.out, "(exit 130)"), 2u) << r.out;
+  EXPECT_EQ(count(r.out, "done          "), 0u) << r.out;
+  EXPECT_NE(r.out.find("stopped by    Ctrl-C"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(out / "synth_5_frames_60_objects_2"));
+
+  const ProcessResult again = objscan(batchArgs(out, sources));
+  EXPECT_EQ(again.exit_code, 0) << again.out << again.err;
+  EXPECT_EQ(count(again.out, "done          "), 3u) << again.out;
+}
+
+TEST(BatchCli, BadListsAreOneErrorEachBeforeAnythingRuns) {
+  TempDir dir;
+  const fs::path out = dir / "all";
+  const fs::path missing = dir / "missing.oni";
+  testing::expectOneErrorLine(objscan(batchArgs(out, {kSources[0], missing.string()})), 2,
+                              missing.string() + ": missing");
+  // Two sources whose results would share a folder.
+  fs::create_directories(dir / "a");
+  fs::create_directories(dir / "b");
+  testing::writeBytes(dir / "a" / "desk.oni", "not a recording");
+  testing::writeBytes(dir / "b" / "desk.oni", "not a recording");
+  testing::expectOneErrorLine(
+      objscan(batchArgs(out, {(dir / "a" / "desk.oni").string(), (dir / "b" / "desk.oni").string()})),
+      2, "its results folder would be desk, as that of " + (dir / "a" / "desk.oni").string());
+  // A recording that cannot be read.
+  testing::expectOneErrorLine(objscan(batchArgs(out, {(dir / "a" / "desk.oni").string()})), 2,
+                              (dir / "a" / "desk.oni").string());
+  // A sensor, an option a batch sets itself, an option scan does not have, an empty list.
+  testing::expectOneErrorLine(objscan(batchArgs(out, {"live"})), 2, "a batch scans recordings");
+  testing::expectOneErrorLine(
+      objscan({"batch", kSources[0], "--out", out.string(), "--", "--catalog", "x.sqlite"}), 2,
+      "--catalog is not a scan option a batch takes");
+  testing::expectOneErrorLine(
+      objscan({"batch", kSources[0], "--out", out.string(), "--", "--frobnicate"}), 2,
+      "--frobnicate");
+  testing::expectOneErrorLine(
+      objscan({"batch", kSources[0], "--out", out.string(), "--", "--no-catalog=maybe"}), 2,
+      "--no-catalog");
+  // A folder whose name is one the batch keeps for itself.
+  fs::create_directories(dir / "logs");
+  testing::expectOneErrorLine(objscan(batchArgs(out, {(dir / "logs").string()})), 2,
+                              "gives no results folder name of its own (logs)");
+  const fs::path list = dir / "list.txt";
+  testing::writeBytes(list, "# nothing but a comment\n\n");
+  testing::expectOneErrorLine(objscan({"batch", "--list", list.string(), "--out", out.string()}),
+                              2, "no sources");
+  testing::expectOneErrorLine(
+      objscan({"batch", "--list", (dir / "none.txt").string(), "--out", out.string()}), 2,
+      (dir / "none.txt").string() + ": missing");
+  EXPECT_FALSE(fs::exists(out));
+}
+
+TEST(BatchCli, AListFileNamesTheSourcesAndNamesComeFromThem) {
+  TempDir dir;
+  const fs::path list = dir / "list.txt";
+  testing::writeBytes(list, "# two scenes\n  " + kSources[0] + "  \n\n" + kSources[1] + "\n");
+  const fs::path out = dir / "all";
+  const ProcessResult r = objscan({"batch", "--list", list.string(), "--out", out.string(),
+                                   "--jobs", "1", "--", "--no-ground-truth", "--top", "1"});
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_TRUE(fs::is_regular_file(out / kNames[0] / report::kReportFile));
+  EXPECT_TRUE(fs::is_regular_file(out / kNames[1] / report::kReportFile));
+  EXPECT_FALSE(fs::exists(out / kNames[2]));
+}
+
+}  // namespace
+}  // namespace objscan
