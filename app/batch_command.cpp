@@ -31,6 +31,7 @@
 #include "objscan/core/memory.h"
 #include "objscan/core/output_folder.h"
 #include "objscan/core/progress.h"
+#include "objscan/discovery/catalog.h"
 #include "objscan/pipeline/sources.h"
 #include "objscan/report/results_io.h"
 #include "options.h"
@@ -364,6 +365,34 @@ class Scans {
   int stops_ = 0;
 };
 
+/// DIR/catalog.sqlite made again from the catalogs of the recordings whose results are complete
+/// (under a temporary name, then renamed into place): the collection's catalog, which only this
+/// writes. Returns its scene and segment counts.
+std::pair<std::size_t, std::size_t> writeCollectionCatalog(
+    const fs::path& out, const std::vector<std::pair<std::string, std::string>>& named) {
+  const fs::path temp = out / "catalog.sqlite.partial";
+  for (const char* suffix : {"", "-journal", "-wal", "-shm"}) {
+    fs::remove(temp.string() + suffix);  // what an interrupted batch left
+  }
+  std::pair<std::size_t, std::size_t> counts;
+  {
+    discovery::Catalog collection(temp);
+    for (const auto& [name, source] : named) {
+      const fs::path shard = out / "catalogs" / (name + ".sqlite");
+      if (!scanComplete(out / name, source) || !fs::is_regular_file(shard)) continue;
+      const discovery::Catalog from(shard);
+      discovery::mergeCatalog(collection, from);
+    }
+    counts = {collection.scenes().size(), collection.segmentCount()};
+  }
+  std::error_code ec;
+  fs::rename(temp, out / "catalog.sqlite", ec);
+  if (ec)
+    throw OutputError(out / "catalog.sqlite",
+                      "cannot put the merged catalog in place: " + ec.message());
+  return counts;
+}
+
 }  // namespace
 
 int runBatch(const BatchCommandOptions& options) {
@@ -408,6 +437,7 @@ int runBatch(const BatchCommandOptions& options) {
   std::signal(SIGCHLD, SIG_DFL);
   StopSignals signals;
   const auto start = SteadyClock::now();
+  const std::vector<std::pair<std::string, std::string>> named_sources = named;
   Scans scans(options, std::move(named), no_catalog);
   const bool finished = scans.run(pending, jobs);
   std::printf("batch         %zu scanned, %zu failed, %zu complete before, in %.1f s; logs in %s\n",
@@ -416,6 +446,12 @@ int runBatch(const BatchCommandOptions& options) {
   if (!finished) {
     std::printf("stopped by    Ctrl-C / SIGTERM: run the same batch again to scan the rest\n");
     return kExitInterrupted;
+  }
+  if (!no_catalog) {
+    const auto [scenes, segments] = writeCollectionCatalog(options.out, named_sources);
+    std::printf("catalog       %s: %zu scenes, %zu segments (merged from %s)\n",
+                (options.out / "catalog.sqlite").c_str(), scenes, segments,
+                (options.out / "catalogs").c_str());
   }
   return scans.failed() == 0 ? kExitSuccess : kExitRuntimeFailure;
 }

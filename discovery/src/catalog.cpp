@@ -1172,4 +1172,14 @@ std::string contentHashOfBytes(std::string_view bytes) {
   return hex16(fnv1a(kFnvOffset, bytes.data(), bytes.size()));
 }
 
+std::size_t mergeCatalog(Catalog& into, const Catalog& from) {
+  std::size_t added = 0;
+  for (const CatalogScene& scene : from.scenes()) {
+    if (into.findScene(scene.content_hash, scene.settings)) continue;
+    into.addScene(scene, from.segments(scene.id, true));
+    ++added;
+  }
+  return added;
+}
+
 }  // namespace objscan::discovery

@@ -71,6 +71,20 @@ TEST(BatchCli, ScansEachRecordingIntoItsOwnFolderAndARerunKeepsCompleteResults) 
     EXPECT_EQ(discovery::Catalog(out / "catalogs" / (kNames[i] + ".sqlite")).scenes().size(), 1u);
     EXPECT_TRUE(fs::is_regular_file(out / "logs" / (kNames[i] + ".log")));
   }
+  // The collection's catalog: the three scans' catalogs merged, read back whole (the catalog
+  // checks the file on opening).
+  std::size_t segments = 0;
+  for (const std::string& name : kNames) {
+    segments += discovery::Catalog(out / "catalogs" / (name + ".sqlite")).segmentCount();
+  }
+  {
+    const discovery::Catalog collection(out / "catalog.sqlite");
+    EXPECT_EQ(collection.scenes().size(), 3u);
+    EXPECT_EQ(collection.segmentCount(), segments);
+  }
+  EXPECT_NE(r.out.find("catalog       " + (out / "catalog.sqlite").string() + ": 3 scenes"),
+            std::string::npos)
+      << r.out;
   const auto written = fs::last_write_time(out / kNames[1] / report::kHypothesesFile);
 
   // Again: nothing to do, nothing rewritten.
@@ -80,6 +94,10 @@ TEST(BatchCli, ScansEachRecordingIntoItsOwnFolderAndARerunKeepsCompleteResults) 
   EXPECT_EQ(count(again.out, "complete      "), 3u) << again.out;
   EXPECT_EQ(count(again.out, "done          "), 0u) << again.out;
   EXPECT_EQ(fs::last_write_time(out / kNames[1] / report::kHypothesesFile), written);
+  // Merged again from the same catalogs: the same collection.
+  const discovery::Catalog collection(out / "catalog.sqlite");
+  EXPECT_EQ(collection.scenes().size(), 3u);
+  EXPECT_EQ(collection.segmentCount(), segments);
 }
 
 TEST(BatchCli, AFailedRecordingIsReportedTheOthersAreScannedAndARerunFillsTheGap) {

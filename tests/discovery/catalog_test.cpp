@@ -188,6 +188,32 @@ TEST(Catalog, RoundTripsScenesSegmentsLabelsAndVertices) {
   EXPECT_TRUE(catalog.segments(b + a + 100, true).empty());
 }
 
+TEST(Catalog, MergingAddsTheScenesNotThereAndTwiceChangesNothing) {
+  TempDir dir;
+  Catalog first(dir / "first.sqlite");
+  first.addScene(makeScene("desk.ply", "00000000000000aa"), {makeSegment(0), makeSegment(1)});
+  Catalog second(dir / "second.sqlite");
+  second.addScene(makeScene("desk.ply", "00000000000000aa"), {makeSegment(0), makeSegment(1)});
+  const std::vector<CatalogSegment> kitchen = {makeSegment(3, 20000), makeSegment(4)};
+  second.addScene(makeScene("kitchen.ply", "00000000000000bb"), kitchen);
+
+  Catalog collection(dir / "collection.sqlite");
+  EXPECT_EQ(mergeCatalog(collection, first), 1u);
+  EXPECT_EQ(mergeCatalog(collection, second), 1u);  // the desk is there already
+  EXPECT_EQ(mergeCatalog(collection, second), 0u);
+  EXPECT_EQ(mergeCatalog(collection, first), 0u);
+  ASSERT_EQ(collection.scenes().size(), 2u);
+  EXPECT_EQ(collection.segmentCount(), 4u);
+  // The kitchen's segments as they were, vertices and labels included.
+  const std::optional<CatalogScene> found =
+      collection.findScene("00000000000000bb", "scales=5..2560");
+  ASSERT_TRUE(found.has_value());
+  EXPECT_EQ(found->name, "kitchen.ply");
+  const std::vector<CatalogSegment> got = collection.segments(found->id, true);
+  ASSERT_EQ(got.size(), kitchen.size());
+  for (std::size_t i = 0; i < got.size(); ++i) expectSameSegment(got[i], kitchen[i], true);
+}
+
 TEST(Catalog, VerticesAreLittleEndianInt32) {
   TempDir dir;
   CatalogSegment s = makeSegment(1, 0);

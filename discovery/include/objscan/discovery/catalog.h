@@ -200,4 +200,12 @@ std::string contentHash(const std::filesystem::path& file);
 /// The same hash of bytes in memory: contentHashOfBytes(a file's bytes) == contentHash(the file).
 std::string contentHashOfBytes(std::string_view bytes);
 
+/// Adds to `into` every scene of `from` that `into` does not hold with the same content hash and
+/// settings, with its segments, their vertices and their current labels (by whoever set them;
+/// the label history stays in `from`). Returns how many scenes were added. Each scene is one
+/// transaction, and a scene already there is left alone: merging the same catalog again changes
+/// nothing, and a merge cut short is finished by running it again. `objscan batch` builds its
+/// collection's catalog so from the catalogs of its scans, which no two processes ever write.
+std::size_t mergeCatalog(Catalog& into, const Catalog& from);
+
 }  // namespace objscan::discovery
