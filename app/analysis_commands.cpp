@@ -168,10 +168,8 @@ struct ScanFlags {
   bool compress_color = false;
 };
 
-}  // namespace
-
-Command addScanCommand(CLI::App& app) {
-  auto state = std::make_shared<ScanFlags>();
+/// scan's subcommand and its options, bound to `state`.
+CLI::App* addScanOptions(CLI::App& app, const std::shared_ptr<ScanFlags>& state) {
   ScanCommandOptions& scan_options = state->options;
   CLI::App* scan = app.add_subcommand(
       "scan", "Capture (or replay) to ranked objects in one go: fuse, discover, render, report");
@@ -220,6 +218,26 @@ Command addScanCommand(CLI::App& app) {
                  "Do not look for ground truth beside the source")
       ->excludes(truth_option);
 
+  return scan;
+}
+
+}  // namespace
+
+ScanCommandOptions parseScanOptions(const std::vector<std::string>& args) {
+  CLI::App parser{"objscan", "objscan"};
+  auto state = std::make_shared<ScanFlags>();
+  addScanOptions(parser, state);
+  std::vector<std::string> argv = {"objscan", "scan"};
+  argv.insert(argv.end(), args.begin(), args.end());
+  std::vector<const char*> raw;
+  for (const std::string& a : argv) raw.push_back(a.c_str());
+  parser.parse(static_cast<int>(raw.size()), raw.data());
+  return state->options;
+}
+
+Command addScanCommand(CLI::App& app) {
+  auto state = std::make_shared<ScanFlags>();
+  CLI::App* scan = addScanOptions(app, state);
   return {scan, [state, scan] {
             state->options.settings = commandSettings(*scan);
             if (!state->record.empty()) {

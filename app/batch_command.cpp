@@ -35,6 +35,7 @@
 #include "objscan/pipeline/sources.h"
 #include "objscan/report/results_io.h"
 #include "options.h"
+#include "scan_command.h"
 #include "stop_signals.h"
 
 extern char** environ;
@@ -71,9 +72,8 @@ unsigned defaultJobs() {
   return static_cast<unsigned>(std::clamp<std::uint64_t>(*memory / kMemoryPerScan, 1, most));
 }
 
-/// Checks the scan options by parsing them as `objscan scan` parses them, before any scan
-/// starts; returns whether they say --no-catalog (then the scans get no catalog of the batch's).
-bool checkScanArgs(const std::vector<std::string>& args, const std::string& source) {
+/// The scan options, parsed as `objscan scan` parses them, before any scan starts.
+ScanCommandOptions checkScanArgs(const std::vector<std::string>& args, const std::string& source) {
   for (const std::string& a : args) {
     for (const char* owned : kBatchOwned) {
       if (a == owned || a.rfind(std::string(owned) + "=", 0) == 0) {
@@ -83,22 +83,17 @@ bool checkScanArgs(const std::vector<std::string>& args, const std::string& sour
       }
     }
   }
-  CLI::App parser{"objscan", "objscan"};
-  const Command scan = addScanCommand(parser);
-  std::vector<std::string> argv = {"objscan", "scan", "--out", "unused"};
+  std::vector<std::string> argv = {"--out", "unused"};
   argv.insert(argv.end(), args.begin(), args.end());
   argv.insert(argv.end(), {"--", source});
-  std::vector<const char*> raw;
-  for (const std::string& a : argv) raw.push_back(a.c_str());
   try {
-    parser.parse(static_cast<int>(raw.size()), raw.data());
+    return parseScanOptions(argv);
   } catch (const CLI::CallForHelp&) {
     throw std::invalid_argument("after --: run 'objscan scan --help' for the scan options");
   } catch (const CLI::ParseError& e) {
     throw std::invalid_argument(std::string("after --: ") + e.what() +
                                 " (run 'objscan scan --help' for the scan options)");
   }
-  return scan.sub->get_option("--no-catalog")->as<bool>();
 }
 
 /// Opens each source as scan would (a missing, unreadable or damaged recording is an error now,
@@ -393,6 +388,27 @@ std::pair<std::size_t, std::size_t> writeCollectionCatalog(
   return counts;
 }
 
+/// Every complete scene ranked again with the others, as `objscan discover` ranks several
+/// scenes: recurrence across the whole collection (a scene scanned first saw no others), the
+/// scans' discovery options, the collection's catalog (whose measures spare measuring again).
+/// Into DIR/collection/.
+void rankTheCollection(const fs::path& out,
+                       const std::vector<std::pair<std::string, std::string>>& named,
+                       DiscoverCommandOptions discover, bool no_catalog) {
+  discover.meshes.clear();
+  for (const auto& [name, source] : named) {
+    if (scanComplete(out / name, source)) discover.meshes.push_back(out / name / report::kMeshFile);
+  }
+  if (discover.meshes.empty()) return;
+  discover.out = out / "collection";
+  if (!no_catalog) discover.catalog = out / "catalog.sqlite";
+  discover.settings.command = "batch";
+  std::printf("collection    %zu scenes ranked together -> %s\n", discover.meshes.size(),
+              discover.out.c_str());
+  std::fflush(stdout);
+  runDiscover(discover);
+}
+
 }  // namespace
 
 int runBatch(const BatchCommandOptions& options) {
@@ -404,7 +420,8 @@ int runBatch(const BatchCommandOptions& options) {
   if (sources.empty()) {
     throw std::invalid_argument("no sources: give recordings, folders or synth:<seed>, or --list");
   }
-  const bool no_catalog = checkScanArgs(options.scan_args, sources.front());
+  const ScanCommandOptions scan_options = checkScanArgs(options.scan_args, sources.front());
+  const bool no_catalog = scan_options.discover.no_catalog;
   std::vector<std::pair<std::string, std::string>> named = checkedSources(sources);
 
   const OutputFolderLock lock = prepareOutputFolder(options.out);
@@ -453,6 +470,7 @@ int runBatch(const BatchCommandOptions& options) {
                 (options.out / "catalog.sqlite").c_str(), scenes, segments,
                 (options.out / "catalogs").c_str());
   }
+  rankTheCollection(options.out, named_sources, scan_options.discover, no_catalog);
   return scans.failed() == 0 ? kExitSuccess : kExitRuntimeFailure;
 }
 

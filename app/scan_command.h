@@ -2,6 +2,7 @@
 
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "discover_command.h"
 #include "fuse_command.h"
@@ -24,6 +25,10 @@ struct ScanCommandOptions {
   report::Settings settings;  ///< the command line's, for OUT/settings.json
   ServeOptions serve;         ///< --serve: the live page
 };
+
+/// scan's options as `objscan scan ARGS` gives them (ARGS: what follows the command's name).
+/// Throws CLI::ParseError (CLI::CallForHelp for --help) for options scan does not take.
+ScanCommandOptions parseScanOptions(const std::vector<std::string>& args);
 
 /// `objscan scan`: fuse, discover, evaluate, render and report into OUT in one run, passing the
 /// values from stage to stage and writing each file once (see docs/scan_and_report.md). Returns

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "cli_expect.h"
 #include "objscan/core/atomic_file.h"
@@ -85,6 +86,23 @@ TEST(BatchCli, ScansEachRecordingIntoItsOwnFolderAndARerunKeepsCompleteResults) 
   EXPECT_NE(r.out.find("catalog       " + (out / "catalog.sqlite").string() + ": 3 scenes"),
             std::string::npos)
       << r.out;
+  // Every scene ranked again with the others: recurrence across the collection, which a scene
+  // scanned alone (its catalog holding only itself) never has.
+  const auto withRecurrence = [](const fs::path& file, std::size_t* scenes) {
+    const nlohmann::json h = nlohmann::json::parse(readWholeFile(file));
+    *scenes = h.at("scenes").size();
+    std::size_t n = 0;
+    for (const nlohmann::json& x : h.at("hypotheses")) {
+      n += x.at("measures").at("recurrence").is_null() ? 0 : 1;
+    }
+    return n;
+  };
+  std::size_t scenes = 0;
+  EXPECT_GT(withRecurrence(out / "collection" / report::kHypothesesFile, &scenes), 0u);
+  EXPECT_EQ(scenes, 3u);
+  for (const std::string& name : kNames) {
+    EXPECT_EQ(withRecurrence(out / name / report::kHypothesesFile, &scenes), 0u) << name;
+  }
   const auto written = fs::last_write_time(out / kNames[1] / report::kHypothesesFile);
 
   // Again: nothing to do, nothing rewritten.
