@@ -23,6 +23,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
+#include "discover_command.h"
 #include "exit_codes.h"
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/clock.h"
@@ -32,6 +33,7 @@
 #include "objscan/core/output_folder.h"
 #include "objscan/core/progress.h"
 #include "objscan/discovery/catalog.h"
+#include "objscan/pipeline/ground_truth.h"
 #include "objscan/pipeline/sources.h"
 #include "objscan/report/results_io.h"
 #include "options.h"
@@ -87,7 +89,20 @@ ScanCommandOptions checkScanArgs(const std::vector<std::string>& args, const std
   argv.insert(argv.end(), args.begin(), args.end());
   argv.insert(argv.end(), {"--", source});
   try {
-    return parseScanOptions(argv);
+    ScanCommandOptions scan = parseScanOptions(argv);
+    // What scan checks before it opens its source: settings, pictures, the model, a given
+    // ground truth.
+    scan.fuse.config.validate();
+    scan.pictures.validate();
+    sceneDiscoveryOptions(scan.discover);
+    if (!scan.ground_truth.empty()) {
+      if (!fs::is_regular_file(scan.ground_truth)) {
+        throw InputError(scan.ground_truth,
+                         fs::exists(scan.ground_truth) ? "not a file" : "missing");
+      }
+      pipeline::requireLabelledMesh(scan.ground_truth);
+    }
+    return scan;
   } catch (const CLI::CallForHelp&) {
     throw std::invalid_argument("after --: run 'objscan scan --help' for the scan options");
   } catch (const CLI::ParseError& e) {
@@ -184,7 +199,7 @@ std::string batchName(const std::string& source) {
     name = sanitized(path.extension() == ".oni" ? path.stem().string() : path.filename().string());
   }
   if (name.empty() || name == "." || name == ".." || name == "catalogs" || name == "logs" ||
-      name == "batch.json") {
+      name == "batch.json" || name == "collection" || name.rfind("catalog.sqlite", 0) == 0) {
     throw std::invalid_argument(source + ": gives no results folder name of its own (" +
                                 (name.empty() ? std::string("none") : name) + ")");
   }
@@ -207,6 +222,29 @@ std::vector<std::string> readSourceList(const fs::path& file) {
   return sources;
 }
 
+namespace {
+
+/// A source as a results folder's settings.json names it, without a trailing slash.
+std::string recordedForm(std::string source) {
+  source = absolutePath(source);
+  while (source.size() > 1 && source.back() == '/') source.pop_back();
+  return source;
+}
+
+/// The source whose results DIR holds (its settings.json), or nothing.
+std::optional<std::string> resultsSource(const fs::path& dir) {
+  try {
+    for (const report::OptionSetting& o :
+         report::readSettings(dir / report::kSettingsFile).options) {
+      if (o.name == "source" && o.values.size() == 1) return recordedForm(o.values[0]);
+    }
+  } catch (const std::exception&) {
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
 bool scanComplete(const fs::path& dir, const std::string& source) {
   try {
     if (!fs::is_regular_file(dir / report::kReportFile)) return false;
@@ -214,10 +252,7 @@ bool scanComplete(const fs::path& dir, const std::string& source) {
     if (timings.interrupted || !timings.sensor_lost.empty()) return false;
     report::readHypotheses(dir / report::kHypothesesFile);
     // Of this source, not of another that gave the same name in an earlier batch.
-    for (const report::OptionSetting& o : report::readSettings(dir / report::kSettingsFile).options) {
-      if (o.name == "source") return o.values == std::vector<std::string>{absolutePath(source)};
-    }
-    return false;
+    return resultsSource(dir) == recordedForm(source);
   } catch (const std::exception&) {
     return false;  // missing or damaged: scanned again
   }
@@ -281,6 +316,11 @@ class Scans {
     }
     args.insert(args.end(), options_.scan_args.begin(), options_.scan_args.end());
     args.insert(args.end(), {"--", source});  // a source that starts with '-' is still one
+    // The scan's catalog holds that scan alone: an earlier attempt's scene goes with it.
+    for (const char* suffix : {"", "-journal", "-wal", "-shm"}) {
+      std::error_code ec;
+      fs::remove(options_.out / "catalogs" / (name + ".sqlite" + suffix), ec);
+    }
     const fs::path log = logOf(name);
     {
       std::ofstream header(log, std::ios::app);
@@ -423,6 +463,25 @@ int runBatch(const BatchCommandOptions& options) {
   const ScanCommandOptions scan_options = checkScanArgs(options.scan_args, sources.front());
   const bool no_catalog = scan_options.discover.no_catalog;
   std::vector<std::pair<std::string, std::string>> named = checkedSources(sources);
+
+  // A folder holding another source's results is not scanned over: they would be lost.
+  for (const auto& [name, source] : named) {
+    const std::optional<std::string> there = resultsSource(options.out / name);
+    if (there && *there != recordedForm(source)) {
+      throw InputError(options.out / name, "holds the results of " + *there + ", not of " + source +
+                                               " (remove it, or give another --out)");
+    }
+  }
+  try {
+    const nlohmann::json earlier = nlohmann::json::parse(readWholeFile(options.out / "batch.json"));
+    if (earlier.at("scan_options") != nlohmann::json(options.scan_args)) {
+      log::warning(
+          "the options after -- differ from the last batch into this folder: its complete "
+          "results were made with those and are kept (remove DIR/<name> to scan one again)");
+    }
+  } catch (const std::exception&) {
+    // no earlier batch here, or its batch.json is damaged: nothing to compare
+  }
 
   const OutputFolderLock lock = prepareOutputFolder(options.out);
   fs::create_directories(options.out / "logs");

@@ -198,10 +198,20 @@ TEST(BatchCli, BadListsAreOneErrorEachBeforeAnythingRuns) {
   testing::expectOneErrorLine(
       objscan({"batch", kSources[0], "--out", out.string(), "--", "--no-catalog=maybe"}), 2,
       "--no-catalog");
-  // A folder whose name is one the batch keeps for itself.
-  fs::create_directories(dir / "logs");
-  testing::expectOneErrorLine(objscan(batchArgs(out, {(dir / "logs").string()})), 2,
-                              "gives no results folder name of its own (logs)");
+  // Option values scan would refuse before opening its source.
+  testing::expectOneErrorLine(
+      objscan({"batch", kSources[0], "--out", out.string(), "--", "--voxel-size", "0"}), 2,
+      "voxel");
+  testing::expectOneErrorLine(objscan({"batch", kSources[0], "--out", out.string(), "--", "--model",
+                                       (dir / "none.model").string()}),
+                              2, (dir / "none.model").string());
+  // Folders whose names are ones the batch keeps for itself.
+  for (const char* kept : {"logs", "collection"}) {
+    fs::create_directories(dir / kept);
+    testing::expectOneErrorLine(
+        objscan(batchArgs(out, {(dir / kept).string()})), 2,
+        std::string("gives no results folder name of its own (") + kept + ")");
+  }
   const fs::path list = dir / "list.txt";
   testing::writeBytes(list, "# nothing but a comment\n\n");
   testing::expectOneErrorLine(objscan({"batch", "--list", list.string(), "--out", out.string()}),
@@ -210,6 +220,21 @@ TEST(BatchCli, BadListsAreOneErrorEachBeforeAnythingRuns) {
       objscan({"batch", "--list", (dir / "none.txt").string(), "--out", out.string()}), 2,
       (dir / "none.txt").string() + ": missing");
   EXPECT_FALSE(fs::exists(out));
+}
+
+TEST(BatchCli, AnotherSourcesResultsAreNotScannedOver) {
+  TempDir dir;
+  const fs::path out = dir / "all";
+  ASSERT_EQ(objscan(batchArgs(out, {kSources[0]})).exit_code, 0);
+  // Another recording whose folder name is the same: refused, the results left as they are.
+  fs::create_directories(dir / "other");
+  const fs::path other = dir / "other" / (kNames[0] + ".oni");
+  fs::copy_file(fs::path(OBJSCAN_SOURCE_DIR) / "recordings" / "synth_desk.oni", other);
+  const auto written = fs::last_write_time(out / kNames[0] / report::kHypothesesFile);
+  testing::expectOneErrorLine(objscan(batchArgs(out, {other.string()})), 2,
+                              (out / kNames[0]).string() + ": holds the results of " + kSources[0] +
+                                  ", not of " + other.string());
+  EXPECT_EQ(fs::last_write_time(out / kNames[0] / report::kHypothesesFile), written);
 }
 
 TEST(BatchCli, AListFileNamesTheSourcesAndNamesComeFromThem) {
