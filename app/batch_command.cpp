@@ -33,7 +33,6 @@
 #include "objscan/core/output_folder.h"
 #include "objscan/core/progress.h"
 #include "objscan/discovery/catalog.h"
-#include "objscan/pipeline/ground_truth.h"
 #include "objscan/pipeline/sources.h"
 #include "objscan/report/results_io.h"
 #include "options.h"
@@ -95,13 +94,7 @@ ScanCommandOptions checkScanArgs(const std::vector<std::string>& args, const std
     scan.fuse.config.validate();
     scan.pictures.validate();
     sceneDiscoveryOptions(scan.discover);
-    if (!scan.ground_truth.empty()) {
-      if (!fs::is_regular_file(scan.ground_truth)) {
-        throw InputError(scan.ground_truth,
-                         fs::exists(scan.ground_truth) ? "not a file" : "missing");
-      }
-      pipeline::requireLabelledMesh(scan.ground_truth);
-    }
+    if (!scan.ground_truth.empty()) requireGroundTruthFile(scan.ground_truth);
     return scan;
   } catch (const CLI::CallForHelp&) {
     throw std::invalid_argument("after --: run 'objscan scan --help' for the scan options");
@@ -263,9 +256,9 @@ namespace {
 /// The scans a batch runs, and what became of them.
 class Scans {
  public:
-  Scans(const BatchCommandOptions& options, std::vector<std::pair<std::string, std::string>> named,
-        bool no_catalog)
-      : options_(options), named_(std::move(named)), no_catalog_(no_catalog) {}
+  Scans(const BatchCommandOptions& options,
+        const std::vector<std::pair<std::string, std::string>>& named, bool no_catalog)
+      : options_(options), named_(named), no_catalog_(no_catalog) {}
   ~Scans() { abandon(); }
   Scans(const Scans&) = delete;
   Scans& operator=(const Scans&) = delete;
@@ -393,7 +386,7 @@ class Scans {
   }
 
   const BatchCommandOptions& options_;
-  std::vector<std::pair<std::string, std::string>> named_;
+  const std::vector<std::pair<std::string, std::string>>& named_;
   bool no_catalog_;
   std::vector<Job> running_;
   std::size_t done_ = 0, failed_ = 0, ended_ = 0;
@@ -401,10 +394,10 @@ class Scans {
 };
 
 /// DIR/catalog.sqlite made again from the catalogs of the recordings whose results are complete
-/// (under a temporary name, then renamed into place): the collection's catalog, which only this
-/// writes. Returns its scene and segment counts.
+/// (`complete`: their names; under a temporary name, then renamed into place): the collection's
+/// catalog, which only this writes. Returns its scene and segment counts.
 std::pair<std::size_t, std::size_t> writeCollectionCatalog(
-    const fs::path& out, const std::vector<std::pair<std::string, std::string>>& named) {
+    const fs::path& out, const std::vector<std::string>& complete) {
   const fs::path temp = out / "catalog.sqlite.partial";
   for (const char* suffix : {"", "-journal", "-wal", "-shm"}) {
     fs::remove(temp.string() + suffix);  // what an interrupted batch left
@@ -412,9 +405,9 @@ std::pair<std::size_t, std::size_t> writeCollectionCatalog(
   std::pair<std::size_t, std::size_t> counts;
   {
     discovery::Catalog collection(temp);
-    for (const auto& [name, source] : named) {
+    for (const std::string& name : complete) {
       const fs::path shard = out / "catalogs" / (name + ".sqlite");
-      if (!scanComplete(out / name, source) || !fs::is_regular_file(shard)) continue;
+      if (!fs::is_regular_file(shard)) continue;
       const discovery::Catalog from(shard);
       discovery::mergeCatalog(collection, from);
     }
@@ -432,13 +425,11 @@ std::pair<std::size_t, std::size_t> writeCollectionCatalog(
 /// scenes: recurrence across the whole collection (a scene scanned first saw no others), the
 /// scans' discovery options, the collection's catalog (whose measures spare measuring again).
 /// Into DIR/collection/.
-void rankTheCollection(const fs::path& out,
-                       const std::vector<std::pair<std::string, std::string>>& named,
+void rankTheCollection(const fs::path& out, const std::vector<std::string>& complete,
                        DiscoverCommandOptions discover, bool no_catalog) {
   discover.meshes.clear();
-  for (const auto& [name, source] : named) {
-    if (scanComplete(out / name, source)) discover.meshes.push_back(out / name / report::kMeshFile);
-  }
+  for (const std::string& name : complete)
+    discover.meshes.push_back(out / name / report::kMeshFile);
   if (discover.meshes.empty()) return;
   discover.out = out / "collection";
   if (!no_catalog) discover.catalog = out / "catalog.sqlite";
@@ -462,7 +453,7 @@ int runBatch(const BatchCommandOptions& options) {
   }
   const ScanCommandOptions scan_options = checkScanArgs(options.scan_args, sources.front());
   const bool no_catalog = scan_options.discover.no_catalog;
-  std::vector<std::pair<std::string, std::string>> named = checkedSources(sources);
+  const std::vector<std::pair<std::string, std::string>> named = checkedSources(sources);
 
   // A folder holding another source's results is not scanned over: they would be lost.
   for (const auto& [name, source] : named) {
@@ -513,8 +504,7 @@ int runBatch(const BatchCommandOptions& options) {
   std::signal(SIGCHLD, SIG_DFL);
   StopSignals signals;
   const auto start = SteadyClock::now();
-  const std::vector<std::pair<std::string, std::string>> named_sources = named;
-  Scans scans(options, std::move(named), no_catalog);
+  Scans scans(options, named, no_catalog);
   const bool finished = scans.run(pending, jobs);
   std::printf("batch         %zu scanned, %zu failed, %zu complete before, in %.1f s; logs in %s\n",
               scans.done(), scans.failed(), skipped, secondsSince(start),
@@ -523,13 +513,18 @@ int runBatch(const BatchCommandOptions& options) {
     std::printf("stopped by    Ctrl-C / SIGTERM: run the same batch again to scan the rest\n");
     return kExitInterrupted;
   }
+  // The recordings whose results are complete now: the collection.
+  std::vector<std::string> complete;
+  for (const auto& [name, source] : named) {
+    if (scanComplete(options.out / name, source)) complete.push_back(name);
+  }
   if (!no_catalog) {
-    const auto [scenes, segments] = writeCollectionCatalog(options.out, named_sources);
+    const auto [scenes, segments] = writeCollectionCatalog(options.out, complete);
     std::printf("catalog       %s: %zu scenes, %zu segments (merged from %s)\n",
                 (options.out / "catalog.sqlite").c_str(), scenes, segments,
                 (options.out / "catalogs").c_str());
   }
-  rankTheCollection(options.out, named_sources, scan_options.discover, no_catalog);
+  rankTheCollection(options.out, complete, scan_options.discover, no_catalog);
   return scans.failed() == 0 ? kExitSuccess : kExitRuntimeFailure;
 }
 

@@ -19,14 +19,18 @@ namespace {
 
 namespace fs = std::filesystem;
 
+/// The items of a list, joined with commas.
+std::string joined(const std::vector<std::string>& items) {
+  std::string list;
+  for (const std::string& m : items) list += (list.empty() ? "" : ", ") + m;
+  return list;
+}
+
 /// The ground truth to evaluate against, checked before any work; empty for none.
 fs::path groundTruthOf(const ScanCommandOptions& options) {
   fs::path truth = options.ground_truth;
   if (!truth.empty()) {
-    if (!fs::is_regular_file(truth)) {
-      throw InputError(truth, fs::exists(truth) ? "not a file" : "missing");
-    }
-    pipeline::requireLabelledMesh(truth);
+    requireGroundTruthFile(truth);
     return truth;
   }
   if (options.no_ground_truth) return {};
@@ -75,9 +79,8 @@ class ScanPrinter : public pipeline::ScanObserver {
   void finished(const pipeline::ScanOutcome& outcome) override {
     const report::Timings& timings = *outcome.results.timings;
     if (outcome.interrupted) {
-      std::string list;
-      for (const std::string& m : outcome.not_produced) list += (list.empty() ? "" : ", ") + m;
-      std::printf("stopped by    Ctrl-C / SIGTERM; not produced: %s\n", list.c_str());
+      std::printf("stopped by    Ctrl-C / SIGTERM; not produced: %s\n",
+                  joined(outcome.not_produced).c_str());
       std::printf("timings       %s\n", (out_ / report::kTimingsFile).c_str());
       return;
     }
@@ -99,12 +102,18 @@ class ScanPrinter : public pipeline::ScanObserver {
 
 /// What a stopped scan tells the page: it ends at once, showing what was written.
 server::LiveFinal stoppedFinal(const std::vector<std::string>& missing) {
-  std::string list;
-  for (const std::string& m : missing) list += (list.empty() ? "" : ", ") + m;
-  return server::LiveFinal::without("stopped by Ctrl-C / SIGTERM; not produced: " + list);
+  return server::LiveFinal::without("stopped by Ctrl-C / SIGTERM; not produced: " +
+                                    joined(missing));
 }
 
 }  // namespace
+
+void requireGroundTruthFile(const fs::path& truth) {
+  if (!fs::is_regular_file(truth)) {
+    throw InputError(truth, fs::exists(truth) ? "not a file" : "missing");
+  }
+  pipeline::requireLabelledMesh(truth);
+}
 
 int runScan(ScanCommandOptions options) {
   if (options.source.empty()) options.source = "live";

@@ -26,6 +26,10 @@ struct ScanCommandOptions {
   ServeOptions serve;         ///< --serve: the live page
 };
 
+/// --ground-truth FILE as scan checks it before any work: a regular file, a mesh with per-vertex
+/// object ids. Throws InputError naming it.
+void requireGroundTruthFile(const std::filesystem::path& truth);
+
 /// scan's options as `objscan scan ARGS` gives them (ARGS: what follows the command's name).
 /// Throws CLI::ParseError (CLI::CallForHelp for --help) for options scan does not take.
 ScanCommandOptions parseScanOptions(const std::vector<std::string>& args);
