@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <atomic>
 #include <charconv>
+#include <chrono>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
@@ -14,6 +15,7 @@
 #include <stdexcept>
 #include <string_view>
 #include <system_error>
+#include <thread>
 #include <utility>
 
 #include <civetweb.h>
@@ -247,6 +249,7 @@ struct HttpServer::Impl {
   /// The port bound: known before the server starts when one was asked for, else set right after
   /// (a request can only come once the port is known to a client, and it is atomic regardless).
   std::atomic<int> port{0};
+  std::atomic<int> in_flight{0};  ///< requests being answered
 
   /// Whether `host` (a Host header) names this server: the address it listens on, or localhost
   /// on a loopback address, or, listening on every interface, an IPv4 address or this machine's
@@ -275,6 +278,13 @@ struct HttpServer::Impl {
   }
 
   int handle(mg_connection* conn) {
+    // Counted while it runs: the destructor lets a reply being written finish (civetweb's stop
+    // would cut it after its headers, and a page would read an empty answer).
+    in_flight.fetch_add(1);
+    struct Done {
+      std::atomic<int>& count;
+      ~Done() { count.fetch_sub(1); }
+    } done{in_flight};
     // Nothing may leave a civetweb callback as an exception (it would end the whole program).
     bool head = false;
     try {
@@ -446,6 +456,12 @@ HttpServer::HttpServer(const ServeAddress& address, Handler handler,
 }
 
 HttpServer::~HttpServer() {
+  // Replies being written are finished first (at most 1 s: a long poll answers within that).
+  const auto start = std::chrono::steady_clock::now();
+  while (impl_->in_flight.load() > 0 &&
+         std::chrono::steady_clock::now() - start < std::chrono::seconds(1)) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
   if (impl_->context) mg_stop(impl_->context);
   mg_exit_library();
 }
