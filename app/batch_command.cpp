@@ -33,6 +33,7 @@
 #include "objscan/core/output_folder.h"
 #include "objscan/core/progress.h"
 #include "objscan/discovery/catalog.h"
+#include "objscan/pipeline/collection.h"
 #include "objscan/pipeline/sources.h"
 #include "objscan/report/results_io.h"
 #include "options.h"
@@ -525,6 +526,18 @@ int runBatch(const BatchCommandOptions& options) {
                 (options.out / "catalogs").c_str());
   }
   rankTheCollection(options.out, complete, scan_options.discover, no_catalog);
+  if (!complete.empty()) {
+    std::vector<pipeline::CollectionRecording> recordings;
+    for (const auto& [name, source] : named) recordings.push_back({name, source});
+    const pipeline::CollectionPageOutcome page =
+        pipeline::writeCollectionPage(options.out, recordings);
+    std::printf("page          %s: %zu scenes, %zu objects across scenes, %zu pictures%s in %.1f s\n",
+                page.page.c_str(), page.scenes, page.groups, page.pictures,
+                page.pictures_failed > 0
+                    ? (" (" + std::to_string(page.pictures_failed) + " failed)").c_str()
+                    : "",
+                page.seconds);
+  }
   return scans.failed() == 0 ? kExitSuccess : kExitRuntimeFailure;
 }
 

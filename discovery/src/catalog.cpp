@@ -688,7 +688,7 @@ struct Catalog::Impl {
                            Access::kRead);
     recurrence_entries = prepare(
         "SELECT scene_id, extent_0, extent_1, extent_2, compactness, symmetry, smoothness, "
-        "local_convexity, global_convexity FROM segments ORDER BY id",
+        "local_convexity, global_convexity, id FROM segments ORDER BY id",
         Access::kRead);
     count_segments = prepare("SELECT count(*) FROM segments", Access::kRead);
   }
@@ -1119,6 +1119,7 @@ std::vector<RecurrenceEntry> Catalog::recurrenceEntries() const {
       }
     }
     for (int j = 0; j < 5; ++j) e.measures[static_cast<std::size_t>(j)] = s.real(4 + j);
+    e.segment_id = s.integer(9);
   }
   s.finish();
   return out;

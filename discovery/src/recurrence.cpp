@@ -56,6 +56,9 @@ void checkArguments(int k, double window) {
 struct RecurrenceIndex::Impl {
   using Cloud = PointCloudAdaptor;
   using Tree = PointTree;
+  /// A squared measure distance and the entry it is to; ordered by distance, then entry, so
+  /// that the k kept do not depend on the order the tree reaches them in.
+  using Neighbour = std::pair<double, std::uint32_t>;
 
   /// A nanoflann result set that keeps, of the points the radius search reaches, those of other
   /// scenes inside the window, as a max-heap of the k smallest squared measure distances.
@@ -66,7 +69,7 @@ struct RecurrenceIndex::Impl {
 
     WindowNeighbours(const Impl& index, const Eigen::Vector3d& q, double window,
                      std::int64_t exclude, const std::array<double, kMeasures>& z_q, std::size_t k,
-                     float radius_sq, std::vector<double>* heap)
+                     float radius_sq, std::vector<Neighbour>* heap)
         : index_(index),
           q_(q),
           window_(window),
@@ -90,12 +93,13 @@ struct RecurrenceIndex::Impl {
       const double* z_i = &index_.z[i * kMeasures];
       double d2 = 0.0;
       for (std::size_t j = 0; j < kMeasures; ++j) d2 += (z_q_[j] - z_i[j]) * (z_q_[j] - z_i[j]);
+      const Neighbour found{d2, i};
       if (heap_.size() < k_) {
-        heap_.push_back(d2);
+        heap_.push_back(found);
         std::push_heap(heap_.begin(), heap_.end());
-      } else if (d2 < heap_.front()) {
+      } else if (found < heap_.front()) {
         std::pop_heap(heap_.begin(), heap_.end());
-        heap_.back() = d2;
+        heap_.back() = found;
         std::push_heap(heap_.begin(), heap_.end());
       }
       return true;
@@ -109,7 +113,7 @@ struct RecurrenceIndex::Impl {
     std::array<double, kMeasures> z_q_;
     std::size_t k_;
     float radius_sq_;
-    std::vector<double>& heap_;
+    std::vector<Neighbour>& heap_;
   };
 
   explicit Impl(std::vector<RecurrenceEntry> entries) {
@@ -159,12 +163,12 @@ struct RecurrenceIndex::Impl {
     return out;
   }
 
-  double query(const Eigen::Vector3f& extents_q, const std::array<double, kMeasures>& measures,
-               std::int64_t exclude, int k, double window, std::vector<double>* heap) const {
+  /// The k nearest qualifying entries into `heap` (a max-heap, unordered otherwise).
+  void search(const Eigen::Vector3f& extents_q, const std::array<double, kMeasures>& measures,
+              std::int64_t exclude, int k, double window, std::vector<Neighbour>* heap) const {
+    heap->clear();
     const Eigen::Vector3d q = extents_q.cast<double>();
-    if (!q.allFinite() || (q.array() < 0.0).any() || scene_ids.empty()) {
-      return std::numeric_limits<double>::quiet_NaN();
-    }
+    if (!q.allFinite() || (q.array() < 0.0).any() || scene_ids.empty()) return;
     // The window's box in log-extents (clamped as the tree's coordinates are) and the ball
     // around its centre that holds it.
     Eigen::Vector3f centre;
@@ -179,9 +183,14 @@ struct RecurrenceIndex::Impl {
     WindowNeighbours found(*this, q, window, exclude, normalised(measures),
                            static_cast<std::size_t>(k), static_cast<float>(radius_sq), heap);
     tree->findNeighbors(found, centre.data(), nanoflann::SearchParams());
+  }
+
+  double query(const Eigen::Vector3f& extents_q, const std::array<double, kMeasures>& measures,
+               std::int64_t exclude, int k, double window, std::vector<Neighbour>* heap) const {
+    search(extents_q, measures, exclude, k, window, heap);
     if (heap->empty()) return std::numeric_limits<double>::quiet_NaN();
     double sum = 0.0;
-    for (double d2 : *heap) sum += std::sqrt(d2);
+    for (const Neighbour& n : *heap) sum += std::sqrt(n.first);
     return sum / static_cast<double>(heap->size());
   }
 
@@ -205,9 +214,24 @@ double RecurrenceIndex::recurrence(const Eigen::Vector3f& extents,
                                    const std::array<double, 5>& measures,
                                    std::int64_t exclude_scene_id, int k, double window) const {
   checkArguments(k, window);
-  std::vector<double> heap;
+  std::vector<Impl::Neighbour> heap;
   heap.reserve(static_cast<std::size_t>(k));
   return impl_->query(extents, measures, exclude_scene_id, k, window, &heap);
+}
+
+std::vector<RecurrenceNeighbour> RecurrenceIndex::nearest(const Eigen::Vector3f& extents,
+                                                          const std::array<double, 5>& measures,
+                                                          std::int64_t exclude_scene_id, int k,
+                                                          double window) const {
+  checkArguments(k, window);
+  std::vector<Impl::Neighbour> heap;
+  heap.reserve(static_cast<std::size_t>(k));
+  impl_->search(extents, measures, exclude_scene_id, k, window, &heap);
+  std::sort_heap(heap.begin(), heap.end());
+  std::vector<RecurrenceNeighbour> out;
+  out.reserve(heap.size());
+  for (const Impl::Neighbour& n : heap) out.push_back({n.second, std::sqrt(n.first)});
+  return out;
 }
 
 std::vector<double> RecurrenceIndex::recurrences(const std::vector<RecurrenceEntry>& queries,
@@ -217,7 +241,7 @@ std::vector<double> RecurrenceIndex::recurrences(const std::vector<RecurrenceEnt
   std::vector<double> out(queries.size());
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, queries.size()),
                     [&](const tbb::blocked_range<std::size_t>& range) {
-                      std::vector<double> heap;
+                      std::vector<Impl::Neighbour> heap;
                       heap.reserve(static_cast<std::size_t>(k));
                       for (std::size_t i = range.begin(); i != range.end(); ++i) {
                         out[i] = impl_->query(queries[i].extents, queries[i].measures,

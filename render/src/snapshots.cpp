@@ -423,7 +423,7 @@ Snapshot SnapshotRenderer::closeUp(std::size_t index, const SnapshotView& overvi
   shot.bgr = Impl::compose(rendered);
   shot.ranks = rendered.label;  // `rendered` goes out of scope: no copy needed
   const int badge = std::max(9, height / 16);
-  drawRankBadge(shot.bgr, {badge + 8, badge + 8}, h.rank, badge);
+  if (h.show_rank) drawRankBadge(shot.bgr, {badge + 8, badge + 8}, h.rank, badge);
   if (cv::countNonZero(shot.ranks == label) > 0) shot.labelled.push_back(h.rank);
   return shot;
 }

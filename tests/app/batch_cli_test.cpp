@@ -103,6 +103,23 @@ TEST(BatchCli, ScansEachRecordingIntoItsOwnFolderAndARerunKeepsCompleteResults) 
   for (const std::string& name : kNames) {
     EXPECT_EQ(withRecurrence(out / name / report::kHypothesesFile, &scenes), 0u) << name;
   }
+  // The collection's page: the three scenes, objects across them, and every picture it shows
+  // a PNG beside it (its check in a browser: ViewPage.TheCollectionPage...).
+  const std::string index = readWholeFile(out / "index.html");
+  EXPECT_NE(index.find("data-scenes=\"3\""), std::string::npos);
+  EXPECT_EQ(index.find("data-groups=\"0\""), std::string::npos);
+  std::size_t pictures = 0;
+  for (std::size_t at = index.find("<img src=\""); at != std::string::npos;
+       at = index.find("<img src=\"", at + 1)) {
+    const std::size_t from = at + 10;
+    const fs::path picture = out / index.substr(from, index.find('"', from) - from);
+    EXPECT_EQ(readWholeFile(picture).substr(0, 4), "\x89PNG") << picture;
+    ++pictures;
+  }
+  EXPECT_GE(pictures, 3u);
+  EXPECT_NE(r.out.find("page          " + (out / "index.html").string() + ": 3 scenes"),
+            std::string::npos)
+      << r.out;
   const auto written = fs::last_write_time(out / kNames[1] / report::kHypothesesFile);
 
   // Again: nothing to do, nothing rewritten.

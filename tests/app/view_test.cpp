@@ -998,6 +998,80 @@ TEST(ViewPage, TheReportsInlineViewDrawsOfflineAndLinksTheViewerWhenServed) {
   EXPECT_EQ(view->wait(10), 0);
 }
 
+// objscan batch's collection page (index.html), opened from disk: every scene with its objects,
+// every picture decoded, objects across scenes from other scenes only, nearest first; and its
+// links open the viewer of the collection on that scene and that object.
+TEST(ViewPage, TheCollectionPageShowsTheScenesAndItsLinksOpenTheirObjectsInTheViewer) {
+  TempDir dir;
+  const fs::path out = dir / "all";
+  const testing::ProcessResult batch =
+      testing::objscan({"batch", "synth:3,frames=8,objects=3", "synth:4,frames=8,objects=3",
+                        "synth:5,frames=8,objects=3", "--out", out.string(), "--jobs", "2", "--",
+                        "--no-ground-truth"});
+  ASSERT_EQ(batch.exit_code, 0) << batch.out << batch.err;
+  testing::ChromiumPage page;
+  ASSERT_TRUE(page.ok());
+  page.navigate("file://" + (out / "index.html").string());
+  ASSERT_TRUE(page.waitFor("document.body.dataset.images !== undefined", 30)) << page.console();
+  const std::string images = page.evaluate("document.body.dataset.images").get<std::string>();
+  const std::size_t slash = images.find('/');
+  ASSERT_NE(slash, std::string::npos);
+  EXPECT_EQ(images.substr(0, slash), images.substr(slash + 1)) << "pictures that did not decode";
+  EXPECT_GT(std::stoi(images.substr(slash + 1)), 10);
+  EXPECT_EQ(page.evaluate("document.body.dataset.errors"), "0") << page.console();
+  EXPECT_EQ(page.evaluate("document.querySelectorAll('section.scene').length"), 3);
+  EXPECT_EQ(page.evaluate("document.querySelectorAll('section.scene figure').length"),
+            page.evaluate("document.querySelectorAll('section.scene figure img').length"));
+  // Each group: a query and its neighbours, none from the query's scene, nearest first.
+  const json groups = page.evaluate(R"((function () {
+    return Array.prototype.map.call(document.querySelectorAll('section.group'), function (g) {
+      var q = g.querySelector('figure.query');
+      return {scene: q.dataset.scene, neighbours: Array.prototype.map.call(
+        g.querySelectorAll('figure.neighbour'), function (n) {
+          return {scene: n.dataset.scene, distance: Number(n.dataset.distance),
+                  href: n.querySelector('a').getAttribute('href')};
+        })};
+    });
+  })())");
+  ASSERT_TRUE(groups.is_array());
+  ASSERT_GE(groups.size(), 1u);
+  std::string link;
+  std::size_t neighbours = 0;
+  for (const json& g : groups) {
+    double last = 0.0;
+    for (const json& n : g["neighbours"]) {
+      EXPECT_NE(n["scene"], g["scene"]);
+      EXPECT_GE(n["distance"].get<double>(), last);
+      last = n["distance"].get<double>();
+      ++neighbours;
+      const std::string href = n["href"];
+      // One on a scene other than the first, which the viewer shows unasked.
+      if (link.empty() && href.find("&segment=") != std::string::npos &&
+          href.find("#scene=0&") == std::string::npos) {
+        link = href;
+      }
+    }
+  }
+  EXPECT_GT(neighbours, 0u);
+  ASSERT_FALSE(link.empty()) << groups.dump();
+  // The link names the viewer's default address; the viewer here listens on a free port.
+  const std::string prefix = "http://127.0.0.1:8090/#scene=";
+  ASSERT_EQ(link.rfind(prefix, 0), 0u) << link;
+  const std::string hash = link.substr(link.find('#'));
+  const std::string scene = hash.substr(7, hash.find('&') - 7);
+  const std::string segment = hash.substr(hash.find("&segment=") + 9);
+  int port = 0;
+  auto view = startView(out / "collection", &port);
+  ASSERT_GT(port, 0);
+  page.navigate("http://127.0.0.1:" + std::to_string(port) + "/" + hash);
+  EXPECT_TRUE(page.waitFor("document.body.getAttribute('data-selected') === 'segment:" + segment +
+                               "'",
+                           60))
+      << page.evaluate("document.body.getAttribute('data-selected')").dump() << page.console();
+  EXPECT_EQ(page.evaluate("String(state.scene)"), scene);
+  EXPECT_EQ(page.evaluate("document.getElementById('scene').value"), scene);
+}
+
 #endif  // OBJSCAN_VIEW_PAGE_TEST
 
 }  // namespace

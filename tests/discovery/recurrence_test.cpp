@@ -213,6 +213,57 @@ TEST(Recurrence, MatchesABruteForceScanOnRandomCatalogs) {
   EXPECT_GT(finite, 900);  // most of the 21 x 60 look-ups find neighbours, so they were checked
 }
 
+// The neighbours themselves (the collection page's "objects across scenes"): the same entries,
+// in the same order, as sorting every qualifying entry by distance; their mean is recurrence().
+TEST(Recurrence, NearestAreTheBruteForcesNearestInOrderAndAverageToTheRecurrence) {
+  std::mt19937 rng(29);
+  const std::vector<RecurrenceEntry> entries = randomEntries(&rng, 2000, 7);
+  const std::vector<RecurrenceEntry> queries = randomEntries(&rng, 40, 1);
+  const RecurrenceIndex index(entries);
+  std::array<double, 5> mean{}, sd{};
+  for (std::size_t j = 0; j < 5; ++j) {
+    for (const auto& e : entries) mean[j] += e.measures[j];
+    mean[j] /= static_cast<double>(entries.size());
+    for (const auto& e : entries) sd[j] += (e.measures[j] - mean[j]) * (e.measures[j] - mean[j]);
+    sd[j] = std::sqrt(sd[j] / static_cast<double>(entries.size()));
+  }
+  std::size_t checked = 0;
+  for (const RecurrenceEntry& q : queries) {
+    std::vector<std::pair<double, std::size_t>> all;
+    for (std::size_t i = 0; i < entries.size(); ++i) {
+      const RecurrenceEntry& e = entries[i];
+      bool in = e.scene_id != 2;
+      for (int d = 0; d < 3; ++d) {
+        in = in && std::abs(double{e.extents[d]} - double{q.extents[d]}) <= 0.25 * q.extents[d];
+      }
+      if (!in) continue;
+      double d2 = 0.0;
+      for (std::size_t j = 0; j < 5; ++j) {
+        d2 += std::pow((e.measures[j] - q.measures[j]) / sd[j], 2);
+      }
+      all.emplace_back(std::sqrt(d2), i);
+    }
+    std::sort(all.begin(), all.end());
+    const std::vector<RecurrenceNeighbour> got = index.nearest(q.extents, q.measures, 2, 10);
+    ASSERT_EQ(got.size(), std::min<std::size_t>(all.size(), 10));
+    double sum = 0.0;
+    for (std::size_t n = 0; n < got.size(); ++n) {
+      EXPECT_EQ(got[n].entry, all[n].second);
+      EXPECT_NEAR(got[n].distance, all[n].first, 1e-9);
+      EXPECT_NE(entries[got[n].entry].scene_id, 2);
+      sum += got[n].distance;
+    }
+    if (!got.empty()) {
+      EXPECT_NEAR(index.recurrence(q.extents, q.measures, 2, 10),
+                  sum / static_cast<double>(got.size()), 1e-12);
+      ++checked;
+    } else {
+      EXPECT_TRUE(std::isnan(index.recurrence(q.extents, q.measures, 2, 10)));
+    }
+  }
+  EXPECT_GT(checked, 20u);  // most queries have neighbours, so the order was checked
+}
+
 TEST(Recurrence, MovedIndexAnswersTheSame) {
   RecurrenceIndex a({entry(1, kSize, first(0)), entry(2, kSize, first(2))});
   const double before = a.recurrence(kSize, first(0), 1);

@@ -27,6 +27,16 @@ struct RecurrenceEntry {
   /// The five shape measures, raw, in recurrenceMeasures() order: compactness, symmetry,
   /// smoothness, local convexity, global convexity.
   std::array<double, 5> measures{};
+  /// The catalog's id of the segment (Catalog::recurrenceEntries fills it); not used by the
+  /// look-up itself.
+  std::int64_t segment_id = 0;
+};
+
+/// One of the segments nearest to a query: which entry (index into the entries the index was
+/// built from) and its distance in z-normalised measure units.
+struct RecurrenceNeighbour {
+  std::size_t entry = 0;
+  double distance = 0.0;
 };
 
 /// The five shape measures that recurrence compares (every measure but recurrence itself).
@@ -56,6 +66,15 @@ class RecurrenceIndex {
   double recurrence(const Eigen::Vector3f& extents, const std::array<double, 5>& measures,
                     std::int64_t exclude_scene_id, int k = kRecurrenceNeighbours,
                     double window = kRecurrenceExtentWindow) const;
+
+  /// The k nearest entries that recurrence() averages over, nearest first (ties by entry);
+  /// empty when none qualifies. The paper's Fig. 6: a segment and the segments of other scenes
+  /// most like it. Throws as recurrence() does.
+  std::vector<RecurrenceNeighbour> nearest(const Eigen::Vector3f& extents,
+                                           const std::array<double, 5>& measures,
+                                           std::int64_t exclude_scene_id,
+                                           int k = kRecurrenceNeighbours,
+                                           double window = kRecurrenceExtentWindow) const;
 
   /// recurrence() for each query (its scene_id is ignored; `exclude_scene_id` applies to all),
   /// in parallel.

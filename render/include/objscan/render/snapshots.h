@@ -25,6 +25,8 @@ struct PaintedHypothesis {
   std::vector<std::int32_t> vertices;
   /// The score is an object score (discovery's object set ranks by it), captioned so.
   bool object_score = false;
+  /// closeUp draws the rank in a corner (off for segments that are not ranked hypotheses).
+  bool show_rank = true;
 };
 
 /// Where the overview camera comes from.
