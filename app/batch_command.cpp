@@ -16,6 +16,7 @@
 #include <fstream>
 #include <map>
 #include <memory>
+#include <set>
 #include <stdexcept>
 #include <thread>
 
@@ -405,13 +406,32 @@ std::pair<std::size_t, std::size_t> writeCollectionCatalog(
   }
   std::pair<std::size_t, std::size_t> counts;
   {
-    discovery::Catalog collection(temp);
+    std::vector<discovery::Catalog> shards;
+    std::set<std::pair<std::string, std::string>> current;  // (content hash, settings)
     for (const std::string& name : complete) {
       const fs::path shard = out / "catalogs" / (name + ".sqlite");
       if (!fs::is_regular_file(shard)) continue;
-      const discovery::Catalog from(shard);
-      discovery::mergeCatalog(collection, from);
+      for (const discovery::CatalogScene& s : shards.emplace_back(shard).scenes()) {
+        current.emplace(s.content_hash, s.settings);
+      }
     }
+    discovery::Catalog collection(temp);
+    // First the earlier collection's scenes that are still current, with the labels people gave
+    // their segments in objscan view (the shards never have those); then the rest.
+    const fs::path earlier = out / "catalog.sqlite";
+    if (fs::exists(earlier)) {
+      try {
+        const discovery::Catalog before(earlier);
+        discovery::mergeCatalog(collection, before, [&](const discovery::CatalogScene& s) {
+          return current.count({s.content_hash, s.settings}) > 0;
+        });
+      } catch (const InputError& e) {
+        log::warning(std::string("the earlier collection catalog is not read, its labels are not "
+                                 "carried over: ") +
+                     e.what());
+      }
+    }
+    for (const discovery::Catalog& shard : shards) discovery::mergeCatalog(collection, shard);
     counts = {collection.scenes().size(), collection.segmentCount()};
   }
   std::error_code ec;

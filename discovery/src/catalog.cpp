@@ -1173,9 +1173,11 @@ std::string contentHashOfBytes(std::string_view bytes) {
   return hex16(fnv1a(kFnvOffset, bytes.data(), bytes.size()));
 }
 
-std::size_t mergeCatalog(Catalog& into, const Catalog& from) {
+std::size_t mergeCatalog(Catalog& into, const Catalog& from,
+                         const std::function<bool(const CatalogScene&)>& take) {
   std::size_t added = 0;
   for (const CatalogScene& scene : from.scenes()) {
+    if (take && !take(scene)) continue;
     if (into.findScene(scene.content_hash, scene.settings)) continue;
     into.addScene(scene, from.segments(scene.id, true));
     ++added;

@@ -122,6 +122,19 @@ TEST(BatchCli, ScansEachRecordingIntoItsOwnFolderAndARerunKeepsCompleteResults) 
       << r.out;
   const auto written = fs::last_write_time(out / kNames[1] / report::kHypothesesFile);
 
+  // A person labels a segment of the collection (objscan view DIR/collection writes the
+  // collection's catalog); the batch makes that catalog again below, and the label stays.
+  std::string labelled_hash;
+  std::vector<std::int32_t> labelled_vertices;
+  {
+    discovery::Catalog collection(out / "catalog.sqlite");
+    const discovery::CatalogScene scene = collection.scenes().at(1);
+    const discovery::CatalogSegment segment = collection.segments(scene.id, true).at(0);
+    collection.setLabel(segment.id, 1, "tester");
+    labelled_hash = scene.content_hash;
+    labelled_vertices = segment.vertices;
+  }
+
   // Again: nothing to do, nothing rewritten.
   const ProcessResult again = objscan(batchArgs(out, kSources));
   ASSERT_EQ(again.exit_code, 0) << again.out << again.err;
@@ -129,10 +142,22 @@ TEST(BatchCli, ScansEachRecordingIntoItsOwnFolderAndARerunKeepsCompleteResults) 
   EXPECT_EQ(count(again.out, "complete      "), 3u) << again.out;
   EXPECT_EQ(count(again.out, "done          "), 0u) << again.out;
   EXPECT_EQ(fs::last_write_time(out / kNames[1] / report::kHypothesesFile), written);
-  // Merged again from the same catalogs: the same collection.
+  // Merged again from the same catalogs: the same collection, with the person's label.
   const discovery::Catalog collection(out / "catalog.sqlite");
   EXPECT_EQ(collection.scenes().size(), 3u);
   EXPECT_EQ(collection.segmentCount(), segments);
+  std::size_t labels = 0;
+  for (const discovery::CatalogScene& scene : collection.scenes()) {
+    for (const discovery::CatalogSegment& s : collection.segments(scene.id, true)) {
+      if (!s.label) continue;
+      ++labels;
+      EXPECT_EQ(scene.content_hash, labelled_hash);
+      EXPECT_EQ(s.vertices, labelled_vertices);
+      EXPECT_EQ(*s.label, 1);
+      EXPECT_EQ(s.labelled_by, "tester");
+    }
+  }
+  EXPECT_EQ(labels, 1u);
 }
 
 TEST(BatchCli, AFailedRecordingIsReportedTheOthersAreScannedAndARerunFillsTheGap) {

@@ -3,6 +3,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -206,6 +207,8 @@ std::string contentHashOfBytes(std::string_view bytes);
 /// transaction, and a scene already there is left alone: merging the same catalog again changes
 /// nothing, and a merge cut short is finished by running it again. `objscan batch` builds its
 /// collection's catalog so from the catalogs of its scans, which no two processes ever write.
-std::size_t mergeCatalog(Catalog& into, const Catalog& from);
+/// `take`, when given, chooses which of `from`'s scenes are merged.
+std::size_t mergeCatalog(Catalog& into, const Catalog& from,
+                         const std::function<bool(const CatalogScene&)>& take = {});
 
 }  // namespace objscan::discovery
