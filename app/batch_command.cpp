@@ -159,6 +159,8 @@ pid_t spawnScan(const std::vector<std::string>& args, const fs::path& log) {
   return pid;
 }
 
+}  // namespace
+
 /// The line a run's part of a log begins with.
 constexpr std::string_view kLogHeader = "---- objscan batch: ";
 
@@ -172,8 +174,6 @@ std::string lastErrorLine(const fs::path& log) {
   }
   return error.empty() ? "see " + log.string() : error;
 }
-
-}  // namespace
 
 std::string batchName(const std::string& source) {
   if (pipeline::isLiveSource(source)) {
@@ -194,7 +194,8 @@ std::string batchName(const std::string& source) {
     name = sanitized(path.extension() == ".oni" ? path.stem().string() : path.filename().string());
   }
   if (name.empty() || name == "." || name == ".." || name == "catalogs" || name == "logs" ||
-      name == "batch.json" || name == "collection" || name.rfind("catalog.sqlite", 0) == 0) {
+      name == "batch.json" || name == "collection" || name == "slurm" || name == "index.html" ||
+      name.rfind("catalog.sqlite", 0) == 0) {
     throw std::invalid_argument(source + ": gives no results folder name of its own (" +
                                 (name.empty() ? std::string("none") : name) + ")");
   }
@@ -461,9 +462,87 @@ void rankTheCollection(const fs::path& out, const std::vector<std::string>& comp
   runDiscover(discover);
 }
 
+/// The end of a batch, after its scans (run here, or as Slurm's merge job): the collection's
+/// catalog merged from the complete recordings' catalogs, the collection ranked together, and
+/// index.html. Prints each; returns how many recordings lack complete results.
+std::size_t endBatch(const fs::path& out, const std::vector<std::pair<std::string, std::string>>& named,
+                     const ScanCommandOptions& scan_options) {
+  const bool no_catalog = scan_options.discover.no_catalog;
+  std::vector<std::string> complete;
+  for (const auto& [name, source] : named) {
+    if (scanComplete(out / name, source)) complete.push_back(name);
+  }
+  if (!no_catalog) {
+    const auto [scenes, segments] = writeCollectionCatalog(out, complete);
+    std::printf("catalog       %s: %zu scenes, %zu segments (merged from %s)\n",
+                (out / "catalog.sqlite").c_str(), scenes, segments, (out / "catalogs").c_str());
+  }
+  rankTheCollection(out, complete, scan_options.discover, no_catalog);
+  if (!complete.empty()) {
+    std::vector<pipeline::CollectionRecording> recordings;
+    for (const auto& [name, source] : named) recordings.push_back({name, source});
+    const pipeline::CollectionPageOutcome page = pipeline::writeCollectionPage(out, recordings);
+    std::printf("page          %s: %zu scenes, %zu objects across scenes, %zu pictures%s in %.1f s\n",
+                page.page.c_str(), page.scenes, page.groups, page.pictures,
+                page.pictures_failed > 0
+                    ? (" (" + std::to_string(page.pictures_failed) + " failed)").c_str()
+                    : "",
+                page.seconds);
+  }
+  return named.size() - complete.size();
+}
+
+/// `objscan batch --finish DIR`: the end of the batch DIR/batch.json describes (Slurm's merge
+/// job runs it once the scans have ended). Every recording without complete results is an error
+/// line; exit 1 then.
+int finishBatch(const fs::path& out) {
+  nlohmann::json batch;
+  try {
+    batch = nlohmann::json::parse(readWholeFile(out / "batch.json"));
+  } catch (const std::exception&) {
+    throw InputError(out / "batch.json", "missing or damaged: not the folder of a batch");
+  }
+  std::vector<std::pair<std::string, std::string>> named;
+  std::vector<std::string> scan_args;
+  try {
+    for (const nlohmann::json& r : batch.at("recordings")) {
+      named.emplace_back(r.at("name").get<std::string>(), r.at("source").get<std::string>());
+    }
+    scan_args = batch.at("scan_options").get<std::vector<std::string>>();
+  } catch (const std::exception&) {
+    throw InputError(out / "batch.json", "damaged: no recordings or scan options");
+  }
+  if (named.empty()) throw InputError(out / "batch.json", "lists no recording");
+  const ScanCommandOptions scan_options = checkScanArgs(scan_args, named.front().second);
+  const OutputFolderLock lock = prepareOutputFolder(out);
+  for (const auto& [name, source] : named) {
+    if (!scanComplete(out / name, source)) {
+      log::error(name + " (" + source + "): no complete results: " +
+                 lastErrorLine(out / "logs" / (name + ".log")));
+    }
+  }
+  const std::size_t missing = endBatch(out, named, scan_options);
+  std::printf("batch         %zu of %zu recordings complete\n", named.size() - missing,
+              named.size());
+  return missing == 0 ? kExitSuccess : kExitRuntimeFailure;
+}
+
 }  // namespace
 
 int runBatch(const BatchCommandOptions& options) {
+  if (!options.status.empty() || !options.finish.empty()) {
+    if (!options.status.empty() && !options.finish.empty()) {
+      throw std::invalid_argument("--status and --finish: one at a time");
+    }
+    if (!options.sources.empty() || !options.list.empty() || !options.out.empty() ||
+        options.slurm.enabled || !options.scan_args.empty()) {
+      throw std::invalid_argument(
+          std::string(options.status.empty() ? "--finish" : "--status") +
+          " takes the batch's folder alone (its recordings and options are in its batch.json)");
+    }
+    return options.status.empty() ? finishBatch(options.finish) : printBatchStatus(options.status);
+  }
+  if (options.out.empty()) throw std::invalid_argument("--out is required");
   std::vector<std::string> sources = options.sources;
   if (!options.list.empty()) {
     const std::vector<std::string> listed = readSourceList(options.list);
@@ -471,6 +550,13 @@ int runBatch(const BatchCommandOptions& options) {
   }
   if (sources.empty()) {
     throw std::invalid_argument("no sources: give recordings, folders or synth:<seed>, or --list");
+  }
+  if (!options.slurm.enabled && (!options.slurm.partition.empty() || options.slurm.max_running ||
+                                 !options.slurm.time.empty() || !options.slurm.mem.empty())) {
+    throw std::invalid_argument("--partition, --max-running, --time and --mem go with --slurm");
+  }
+  if (options.slurm.enabled && options.jobs) {
+    throw std::invalid_argument("--jobs is for a batch on this machine; on Slurm, --max-running");
   }
   const ScanCommandOptions scan_options = checkScanArgs(options.scan_args, sources.front());
   const bool no_catalog = scan_options.discover.no_catalog;
@@ -495,7 +581,7 @@ int runBatch(const BatchCommandOptions& options) {
     // no earlier batch here, or its batch.json is damaged: nothing to compare
   }
 
-  const OutputFolderLock lock = prepareOutputFolder(options.out);
+  std::optional<OutputFolderLock> lock = prepareOutputFolder(options.out);
   fs::create_directories(options.out / "logs");
   if (!no_catalog) fs::create_directories(options.out / "catalogs");
   nlohmann::json batch = {{"format", "objscan batch, version 1"},
@@ -516,6 +602,12 @@ int runBatch(const BatchCommandOptions& options) {
       pending.push_back(i);
     }
   }
+  if (options.slurm.enabled) {
+    // The scans and the merge are Slurm's now: the folder is not this process's to hold.
+    lock.reset();
+    return submitToSlurm({options.out, named, pending, options.scan_args, no_catalog},
+                         options.slurm);
+  }
   const unsigned jobs = std::max(1u, options.jobs.value_or(defaultJobs()));
   std::printf("batch         %zu recordings, %zu to scan, %u at a time -> %s\n", named.size(),
               pending.size(), jobs, options.out.c_str());
@@ -534,30 +626,7 @@ int runBatch(const BatchCommandOptions& options) {
     std::printf("stopped by    Ctrl-C / SIGTERM: run the same batch again to scan the rest\n");
     return kExitInterrupted;
   }
-  // The recordings whose results are complete now: the collection.
-  std::vector<std::string> complete;
-  for (const auto& [name, source] : named) {
-    if (scanComplete(options.out / name, source)) complete.push_back(name);
-  }
-  if (!no_catalog) {
-    const auto [scenes, segments] = writeCollectionCatalog(options.out, complete);
-    std::printf("catalog       %s: %zu scenes, %zu segments (merged from %s)\n",
-                (options.out / "catalog.sqlite").c_str(), scenes, segments,
-                (options.out / "catalogs").c_str());
-  }
-  rankTheCollection(options.out, complete, scan_options.discover, no_catalog);
-  if (!complete.empty()) {
-    std::vector<pipeline::CollectionRecording> recordings;
-    for (const auto& [name, source] : named) recordings.push_back({name, source});
-    const pipeline::CollectionPageOutcome page =
-        pipeline::writeCollectionPage(options.out, recordings);
-    std::printf("page          %s: %zu scenes, %zu objects across scenes, %zu pictures%s in %.1f s\n",
-                page.page.c_str(), page.scenes, page.groups, page.pictures,
-                page.pictures_failed > 0
-                    ? (" (" + std::to_string(page.pictures_failed) + " failed)").c_str()
-                    : "",
-                page.seconds);
-  }
+  endBatch(options.out, named, scan_options);
   return scans.failed() == 0 ? kExitSuccess : kExitRuntimeFailure;
 }
 
@@ -571,6 +640,8 @@ Command addBatchCommand(CLI::App& app, std::shared_ptr<const std::vector<std::st
       "Examples:\n"
       "  objscan batch recordings/*.oni --out out/all\n"
       "  objscan batch --list scans.txt --out out/all --jobs 2 -- --frames 300 --top 8\n"
+      "  objscan batch --list scans.txt --out /shared/all --slurm --max-running 20\n"
+      "  objscan batch --status /shared/all\n"
       "Run it again after a failure or Ctrl-C: complete results are kept, the rest is scanned.");
   batch->add_option("sources", options->sources,
                     "Recordings (X.oni), TUM or 7-Scenes folders, synth:<seed>");
@@ -578,11 +649,25 @@ Command addBatchCommand(CLI::App& app, std::shared_ptr<const std::vector<std::st
                     "A file of sources, one a line (blank lines and # comments skipped)");
   batch->add_option("--out", options->out,
                     "Folder for the results: OUT/<name>/ a recording, OUT/logs/, OUT/catalogs/, "
-                    "OUT/batch.json")
-      ->required();
+                    "OUT/batch.json, OUT/index.html");
   batch->add_option("--jobs", options->jobs,
                     "Scans at a time (default: the cores, fewer when memory is short)")
       ->check(wholeNumberFrom(1));
+  batch->add_flag("--slurm", options->slurm.enabled,
+                  "Submit to Slurm: one job array of the scans, then the merge (OUT/slurm/)");
+  batch->add_option("--partition", options->slurm.partition, "With --slurm: the partition");
+  batch->add_option("--max-running", options->slurm.max_running,
+                    "With --slurm: scans at a time (the array's %K)")
+      ->check(wholeNumberFrom(1));
+  batch->add_option("--time", options->slurm.time,
+                    "With --slurm: each job's time limit, as sbatch takes it (e.g. 2:00:00)");
+  batch->add_option("--mem", options->slurm.mem,
+                    "With --slurm: memory per job, as sbatch takes it (default 1536M)");
+  batch->add_option("--status", options->status,
+                    "Say where the batch in this folder stands: done, running, queued, failed");
+  batch->add_option("--finish", options->finish,
+                    "The end of the batch in this folder: merge, rank, index.html (Slurm's merge "
+                    "job runs it)");
   return {batch, [options, scan_args] {
             options->scan_args = *scan_args;
             return runBatch(*options);

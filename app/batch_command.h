@@ -5,6 +5,8 @@
 #include <string>
 #include <vector>
 
+#include "batch_slurm.h"
+
 namespace objscan::app {
 
 struct BatchCommandOptions {
@@ -13,6 +15,9 @@ struct BatchCommandOptions {
   std::filesystem::path out;
   std::optional<unsigned> jobs;        ///< --jobs; nothing: what the machine allows
   std::vector<std::string> scan_args;  ///< after --: options for every scan
+  SlurmOptions slurm;                  ///< --slurm and its options
+  std::filesystem::path status;        ///< --status DIR: say where a batch stands
+  std::filesystem::path finish;        ///< --finish DIR: the end of a batch (its merge job)
 };
 
 /// A recording's results folder name in a batch: a file's name without .oni, a folder's name,
@@ -29,12 +34,16 @@ std::vector<std::string> readSourceList(const std::filesystem::path& file);
 /// results model, with no interruption and no sensor lost. A batch run again skips those.
 bool scanComplete(const std::filesystem::path& dir, const std::string& source);
 
+/// The last error line of the latest run in a scan's log ("see LOG" when it has none).
+std::string lastErrorLine(const std::filesystem::path& log);
+
 /// `objscan batch`: one `objscan scan` per source into OUT/<name>/, --jobs at a time, each with
 /// its own catalog (OUT/catalogs/<name>.sqlite) and log (OUT/logs/<name>.log); a line per
 /// recording as it ends and a bar over all. Everything is checked before the first scan starts.
 /// Returns 0 when every recording has complete results, 1 when one failed (the others are still
 /// scanned), 130 when stopped by Ctrl-C / SIGTERM (passed on to the scans, which keep what they
-/// wrote).
+/// wrote). With --slurm, submits the scans and the end of the batch to Slurm instead
+/// (batch_slurm.h); --status and --finish act on the folder of an earlier batch.
 int runBatch(const BatchCommandOptions& options);
 
 }  // namespace objscan::app
