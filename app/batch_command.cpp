@@ -195,7 +195,7 @@ std::string batchName(const std::string& source) {
   }
   if (name.empty() || name == "." || name == ".." || name == "catalogs" || name == "logs" ||
       name == "batch.json" || name == "collection" || name == "slurm" || name == "index.html" ||
-      name.rfind("catalog.sqlite", 0) == 0) {
+      name.rfind("catalog.", 0) == 0) {
     throw std::invalid_argument(source + ": gives no results folder name of its own (" +
                                 (name.empty() ? std::string("none") : name) + ")");
   }
@@ -407,14 +407,16 @@ std::pair<std::size_t, std::size_t> writeCollectionCatalog(
   }
   std::pair<std::size_t, std::size_t> counts;
   {
-    std::vector<discovery::Catalog> shards;
+    // One shard open at a time (a collection of thousands would run out of file descriptors).
+    std::vector<fs::path> shards;
     std::set<std::pair<std::string, std::string>> current;  // (content hash, settings)
     for (const std::string& name : complete) {
       const fs::path shard = out / "catalogs" / (name + ".sqlite");
       if (!fs::is_regular_file(shard)) continue;
-      for (const discovery::CatalogScene& s : shards.emplace_back(shard).scenes()) {
+      for (const discovery::CatalogScene& s : discovery::Catalog(shard).scenes()) {
         current.emplace(s.content_hash, s.settings);
       }
+      shards.push_back(shard);
     }
     discovery::Catalog collection(temp);
     // First the earlier collection's scenes that are still current, with the labels people gave
@@ -426,16 +428,25 @@ std::pair<std::size_t, std::size_t> writeCollectionCatalog(
         discovery::mergeCatalog(collection, before, [&](const discovery::CatalogScene& s) {
           return current.count({s.content_hash, s.settings}) > 0;
         });
-      } catch (const InputError& e) {
+      } catch (const std::exception& e) {
         log::warning(std::string("the earlier collection catalog is not read, its labels are not "
-                                 "carried over: ") +
+                                 "carried over (it is kept as catalog.previous.sqlite): ") +
                      e.what());
       }
     }
-    for (const discovery::Catalog& shard : shards) discovery::mergeCatalog(collection, shard);
+    for (const fs::path& shard : shards) discovery::mergeCatalog(collection, discovery::Catalog(shard));
     counts = {collection.scenes().size(), collection.segmentCount()};
   }
+  // The earlier catalog is kept beside it, with every label and its history, until the next
+  // batch: the labels of a recording that is not complete this time are not in the new one.
   std::error_code ec;
+  if (fs::exists(out / "catalog.sqlite")) {
+    fs::rename(out / "catalog.sqlite", out / "catalog.previous.sqlite", ec);
+    if (ec) {
+      throw OutputError(out / "catalog.sqlite", "cannot keep it as catalog.previous.sqlite: " +
+                                                    ec.message());
+    }
+  }
   fs::rename(temp, out / "catalog.sqlite", ec);
   if (ec)
     throw OutputError(out / "catalog.sqlite",
@@ -472,23 +483,26 @@ std::size_t endBatch(const fs::path& out, const std::vector<std::pair<std::strin
   for (const auto& [name, source] : named) {
     if (scanComplete(out / name, source)) complete.push_back(name);
   }
+  if (complete.empty()) {
+    std::printf("collection    no recording has complete results: the collection is left as it "
+                "was\n");
+    return named.size();
+  }
   if (!no_catalog) {
     const auto [scenes, segments] = writeCollectionCatalog(out, complete);
     std::printf("catalog       %s: %zu scenes, %zu segments (merged from %s)\n",
                 (out / "catalog.sqlite").c_str(), scenes, segments, (out / "catalogs").c_str());
   }
   rankTheCollection(out, complete, scan_options.discover, no_catalog);
-  if (!complete.empty()) {
-    std::vector<pipeline::CollectionRecording> recordings;
-    for (const auto& [name, source] : named) recordings.push_back({name, source});
-    const pipeline::CollectionPageOutcome page = pipeline::writeCollectionPage(out, recordings);
-    std::printf("page          %s: %zu scenes, %zu objects across scenes, %zu pictures%s in %.1f s\n",
-                page.page.c_str(), page.scenes, page.groups, page.pictures,
-                page.pictures_failed > 0
-                    ? (" (" + std::to_string(page.pictures_failed) + " failed)").c_str()
-                    : "",
-                page.seconds);
-  }
+  std::vector<pipeline::CollectionRecording> recordings;
+  for (const auto& [name, source] : named) recordings.push_back({name, source});
+  const pipeline::CollectionPageOutcome page = pipeline::writeCollectionPage(out, recordings);
+  std::printf("page          %s: %zu scenes, %zu objects across scenes, %zu pictures%s in %.1f s\n",
+              page.page.c_str(), page.scenes, page.groups, page.pictures,
+              page.pictures_failed > 0
+                  ? (" (" + std::to_string(page.pictures_failed) + " failed)").c_str()
+                  : "",
+              page.seconds);
   return named.size() - complete.size();
 }
 
@@ -530,12 +544,18 @@ int finishBatch(const fs::path& out) {
 }  // namespace
 
 int runBatch(const BatchCommandOptions& options) {
+  // Ended child processes are collected by pid: not if SIGCHLD were ignored (that survives
+  // exec), for the scans here as for sbatch and squeue.
+  std::signal(SIGCHLD, SIG_DFL);
+  const bool slurm_options = options.slurm.enabled || !options.slurm.partition.empty() ||
+                             options.slurm.max_running || !options.slurm.time.empty() ||
+                             !options.slurm.mem.empty();
   if (!options.status.empty() || !options.finish.empty()) {
     if (!options.status.empty() && !options.finish.empty()) {
       throw std::invalid_argument("--status and --finish: one at a time");
     }
     if (!options.sources.empty() || !options.list.empty() || !options.out.empty() ||
-        options.slurm.enabled || !options.scan_args.empty()) {
+        slurm_options || options.jobs || !options.scan_args.empty()) {
       throw std::invalid_argument(
           std::string(options.status.empty() ? "--finish" : "--status") +
           " takes the batch's folder alone (its recordings and options are in its batch.json)");
@@ -551,16 +571,26 @@ int runBatch(const BatchCommandOptions& options) {
   if (sources.empty()) {
     throw std::invalid_argument("no sources: give recordings, folders or synth:<seed>, or --list");
   }
-  if (!options.slurm.enabled && (!options.slurm.partition.empty() || options.slurm.max_running ||
-                                 !options.slurm.time.empty() || !options.slurm.mem.empty())) {
+  if (!options.slurm.enabled && slurm_options) {
     throw std::invalid_argument("--partition, --max-running, --time and --mem go with --slurm");
   }
-  if (options.slurm.enabled && options.jobs) {
-    throw std::invalid_argument("--jobs is for a batch on this machine; on Slurm, --max-running");
+  if (options.slurm.enabled) {
+    if (options.jobs) {
+      throw std::invalid_argument("--jobs is for a batch on this machine; on Slurm, --max-running");
+    }
+    checkSlurmOptions(options.slurm, options.out);
   }
   const ScanCommandOptions scan_options = checkScanArgs(options.scan_args, sources.front());
   const bool no_catalog = scan_options.discover.no_catalog;
-  const std::vector<std::pair<std::string, std::string>> named = checkedSources(sources);
+  std::vector<std::pair<std::string, std::string>> named = checkedSources(sources);
+  // Sources as absolute paths: the batch's scripts, --status and --finish may run elsewhere.
+  for (auto& [name, source] : named) source = recordedForm(source);
+  if (options.slurm.enabled) {
+    for (const auto& [name, source] : named) checkSlurmSource(source);
+  }
+  // Nothing of an earlier Slurm submission into DIR may still run: its tasks read
+  // DIR/slurm/recordings.txt, and two scans of one recording would write one folder.
+  requireNoQueuedJobs(options.out);
 
   // A folder holding another source's results is not scanned over: they would be lost.
   for (const auto& [name, source] : named) {
@@ -613,8 +643,6 @@ int runBatch(const BatchCommandOptions& options) {
               pending.size(), jobs, options.out.c_str());
   std::fflush(stdout);
 
-  // Ended scans are collected by pid: not if SIGCHLD were ignored (that survives exec).
-  std::signal(SIGCHLD, SIG_DFL);
   StopSignals signals;
   const auto start = SteadyClock::now();
   Scans scans(options, named, no_catalog);

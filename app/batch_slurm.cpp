@@ -23,6 +23,7 @@
 #include "exit_codes.h"
 #include "objscan/core/atomic_file.h"
 #include "objscan/core/error.h"
+#include "objscan/core/log.h"
 
 extern char** environ;
 
@@ -33,6 +34,9 @@ namespace fs = std::filesystem;
 
 /// Memory asked per task when --mem is not given: the memory guard's allowance per scan.
 constexpr const char* kDefaultMemory = "1536M";
+/// Memory asked for the merge when --mem is not given: it reads every scene's mesh at once and
+/// renders the collection page.
+constexpr const char* kMergeMemory = "4G";
 /// CPUs per task: one scan keeps about 1.6 cores busy (docs/batch.md).
 constexpr int kCpusPerTask = 2;
 
@@ -99,9 +103,10 @@ ToolResult runTool(const std::vector<std::string>& args) {
       }
     }
     int status = 0;
-    while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+    pid_t waited = -1;
+    while ((waited = ::waitpid(pid, &status, 0)) < 0 && errno == EINTR) {
     }
-    result.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    result.status = waited == pid && WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   }
   ::close(out_pipe[0]);
   ::close(err_pipe[0]);
@@ -122,23 +127,39 @@ std::string lastLine(const std::string& text) {
   return last;
 }
 
-/// The #SBATCH lines every job of the batch shares.
+/// The #SBATCH lines every job of the batch shares (the output file goes on sbatch's command
+/// line, quoted: the folder's path may hold spaces).
 std::string sbatchOptions(const SlurmOptions& options, const std::string& name,
-                          const fs::path& output) {
-  std::string s = "#SBATCH --job-name=" + name + "\n#SBATCH --output=" + output.string() + "\n";
+                          const std::string& memory) {
+  std::string s = "#SBATCH --job-name=" + name + "\n";
   if (!options.partition.empty()) s += "#SBATCH --partition=" + options.partition + "\n";
   if (!options.time.empty()) s += "#SBATCH --time=" + options.time + "\n";
-  s += "#SBATCH --mem=" + (options.mem.empty() ? std::string(kDefaultMemory) : options.mem) + "\n";
+  s += "#SBATCH --mem=" + memory + "\n";
   return s;
 }
 
-/// An #SBATCH value objscan writes into a script: one line of printable characters.
-void checkSbatchValue(const std::string& flag, const std::string& value) {
-  for (const char c : value) {
-    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f || c == ' ') {
-      throw std::invalid_argument(flag + " takes one word without spaces or control characters");
-    }
+bool hasControl(const std::string& text) {
+  for (const char c : text) {
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) return true;
   }
+  return false;
+}
+
+/// An #SBATCH value objscan writes into a script: one word of printable characters.
+void checkSbatchValue(const std::string& flag, const std::string& value) {
+  if (hasControl(value) || value.find(' ') != std::string::npos) {
+    throw std::invalid_argument(flag + " takes one word without spaces or control characters");
+  }
+}
+
+/// A path in sbatch's --output: '%' starts a pattern there, "%%" is a '%'.
+std::string outputPattern(const fs::path& folder, const std::string& file) {
+  std::string out;
+  for (const char c : folder.string()) {
+    out += c;
+    if (c == '%') out += '%';
+  }
+  return out + "/" + file;
 }
 
 /// Job ids in DIR/slurm/jobs.json.
@@ -150,31 +171,93 @@ nlohmann::json readJobs(const fs::path& dir) {
   }
 }
 
+/// The running objscan binary's path, which the scripts run.
+fs::path objscanBinary() {
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (ec) throw std::runtime_error("cannot find the objscan binary: " + ec.message());
+  return exe;
+}
+
+/// The ids of DIR's jobs (slurm/jobs.json) that squeue still lists; nothing when squeue cannot
+/// be asked (its message in `error`).
+std::vector<std::string> queuedJobs(const nlohmann::json& jobs, std::string* error) {
+  std::string ids = jobs.value("array", "");
+  for (const nlohmann::json& m : jobs.value("merge", nlohmann::json::array())) {
+    ids += ',';
+    ids += m.get<std::string>();
+  }
+  std::vector<std::string> queued;
+  try {
+    const ToolResult r = runTool({"squeue", "-h", "-o", "%i", "-j", ids});
+    if (r.status != 0) {
+      *error = "squeue failed: " + lastLine(r.err);
+      return queued;
+    }
+    std::istringstream in(r.out);
+    std::string line;
+    while (std::getline(in, line)) {
+      if (!line.empty()) queued.push_back(line);
+    }
+  } catch (const std::exception& e) {
+    *error = e.what();
+  }
+  return queued;
+}
+
 }  // namespace
 
-int submitToSlurm(const BatchPlan& plan, const SlurmOptions& options) {
+void checkSlurmOptions(const SlurmOptions& options, const fs::path& out) {
   checkSbatchValue("--partition", options.partition);
   checkSbatchValue("--time", options.time);
   checkSbatchValue("--mem", options.mem);
+  if (hasControl(fs::absolute(out).string()) || hasControl(objscanBinary().string())) {
+    throw std::invalid_argument(
+        "--slurm: the folder's path, or objscan's, holds a control character, which cannot go "
+        "into an sbatch script");
+  }
+}
+
+void checkSlurmSource(const std::string& source) {
+  if (hasControl(source)) {
+    throw std::invalid_argument(source +
+                                ": a source with a control character (a tab, a line break) "
+                                "cannot go into the Slurm task list");
+  }
+}
+
+void requireNoQueuedJobs(const fs::path& out) {
+  const nlohmann::json jobs = readJobs(out);
+  if (!jobs.is_object()) return;
+  std::string error;
+  const std::vector<std::string> queued = queuedJobs(jobs, &error);
+  if (!error.empty()) {
+    log::warning("cannot ask Slurm whether the jobs of the earlier submission into this folder "
+                 "have ended (" + error + ")");
+  }
+  if (!queued.empty()) {
+    std::string list;
+    for (const std::string& id : queued) {
+      if (!list.empty()) list += ", ";
+      list += id;
+    }
+    throw std::runtime_error(out.string() + ": jobs of an earlier Slurm submission into it are "
+                             "still queued or running (" + list +
+                             "): wait for them (objscan batch --status), or scancel them");
+  }
+}
+
+int submitToSlurm(const BatchPlan& plan, const SlurmOptions& options) {
   const fs::path out = fs::absolute(plan.out).lexically_normal();
   if (plan.pending.empty()) {
     std::printf("slurm         nothing to submit: every recording has complete results\n");
     return kExitSuccess;
   }
-  for (const std::size_t i : plan.pending) {
-    for (const char c : plan.named[i].second) {
-      if (static_cast<unsigned char>(c) < 0x20) {
-        throw std::invalid_argument(plan.named[i].second +
-                                    ": a source with a control character (a tab, a line break) "
-                                    "cannot go into the Slurm task list");
-      }
-    }
-  }
   const fs::path slurm = out / "slurm";
   fs::create_directories(slurm / "logs");
-  std::error_code ec;
-  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-  if (ec) throw std::runtime_error("cannot find the objscan binary: " + ec.message());
+  const fs::path exe = objscanBinary();
+  const std::string memory = options.mem.empty() ? std::string(kDefaultMemory) : options.mem;
+  const std::string merge_memory = options.mem.empty() ? std::string(kMergeMemory) : options.mem;
 
   // The recordings of this submission, one a line: array task i scans line i + 1.
   std::string list;
@@ -189,7 +272,7 @@ int submitToSlurm(const BatchPlan& plan, const SlurmOptions& options) {
       "# objscan batch --slurm: array task i scans line i + 1 of recordings.txt into DIR/<name>/,\n"
       "# with its own catalog DIR/catalogs/<name>.sqlite, its output appended to\n"
       "# DIR/logs/<name>.log. Submitted by submit.sh beside it.\n" +
-      sbatchOptions(options, "objscan-scan", slurm / "logs" / "scan-%A_%a.out") +
+      sbatchOptions(options, "objscan-scan", memory) +
       "#SBATCH --cpus-per-task=" + std::to_string(kCpusPerTask) +
       "\nset -u\n"
       "dir=" + dir + "\n" +
@@ -217,7 +300,7 @@ int submitToSlurm(const BatchPlan& plan, const SlurmOptions& options) {
       "#!/bin/bash\n"
       "# objscan batch --slurm: after the scans, merges their catalogs, ranks the collection and\n"
       "# writes index.html (objscan batch --finish). Submitted by submit.sh beside it.\n" +
-      sbatchOptions(options, "objscan-merge", slurm / "logs" / "merge-%j.out") +
+      sbatchOptions(options, "objscan-merge", merge_memory) +
       "exec " + shellWord(exe.string()) + " batch --finish " + dir + " < /dev/null\n";
   writeFileAtomically(slurm / "merge.sbatch", merge);
 
@@ -231,16 +314,20 @@ int submitToSlurm(const BatchPlan& plan, const SlurmOptions& options) {
       "# two is dropped by Slurm). Prints the three job ids. Run it again to submit it again.\n"
       "set -euo pipefail\n"
       "dir=" + dir + "\n" +
-      "array=$(sbatch --parsable --array=" + array + " \"$dir/slurm/scan.sbatch\")\n"
+      "array=$(sbatch --parsable --array=" + array + " --output=" +
+      shellWord(outputPattern(slurm / "logs", "scan-%A_%a.out")) +
+      " \"$dir/slurm/scan.sbatch\")\n"
       "array=${array%%;*}\n"
       "echo \"$array\"\n"
-      "sbatch --parsable --dependency=afterok:$array --kill-on-invalid-dep=yes "
-      "\"$dir/slurm/merge.sbatch\"\n"
-      "sbatch --parsable --dependency=afternotok:$array --kill-on-invalid-dep=yes "
-      "\"$dir/slurm/merge.sbatch\"\n";
+      "for after in afterok afternotok; do\n"
+      "  sbatch --parsable --dependency=$after:$array --kill-on-invalid-dep=yes --output=" +
+      shellWord(outputPattern(slurm / "logs", "merge-%j.out")) +
+      " \"$dir/slurm/merge.sbatch\"\n"
+      "done\n";
   writeFileAtomically(slurm / "submit.sh", submit);
+  std::error_code perms_error;  // not executable: `bash submit.sh` still runs it
   fs::permissions(slurm / "submit.sh", fs::perms::owner_exec | fs::perms::group_exec,
-                  fs::perm_options::add, ec);
+                  fs::perm_options::add, perms_error);
 
   const ToolResult r = runTool({"bash", (slurm / "submit.sh").string()});
   std::vector<std::string> ids;
@@ -253,10 +340,24 @@ int submitToSlurm(const BatchPlan& plan, const SlurmOptions& options) {
   }
   if (r.status != 0 || ids.size() != 3) {
     const std::string why = lastLine(r.err);
+    std::string submitted;
+    for (const std::string& id : ids) {
+      if (!submitted.empty()) submitted += ", ";
+      submitted += id;
+    }
+    if (!ids.empty()) {
+      writeFileAtomically(slurm / "jobs.json",
+                          nlohmann::json({{"array", ids[0]},
+                                          {"merge", std::vector<std::string>(ids.begin() + 1,
+                                                                             ids.end())},
+                                          {"recordings", nlohmann::json::array()}})
+                                  .dump(2) +
+                              "\n");
+    }
     throw std::runtime_error("sbatch failed" + (why.empty() ? std::string() : ": " + why) +
                              (ids.empty() ? std::string()
-                                          : " (submitted before it: job " + ids.front() +
-                                                "; scancel it if it should not run)"));
+                                          : " (submitted before it: job " + submitted +
+                                                "; scancel them, then submit again)"));
   }
   nlohmann::json jobs = {{"array", ids[0]},
                          {"merge", {ids[1], ids[2]}},
@@ -308,9 +409,7 @@ int printBatchStatus(const fs::path& dir) {
     }
     try {
       const ToolResult r = runTool({"squeue", "-h", "-r", "-o", "%i|%T", "-j", ids});
-      if (r.status != 0) {
-        slurm_note = "squeue: " + lastLine(r.err);
-      }
+      if (r.status != 0) slurm_note = "squeue failed: " + lastLine(r.err);
       std::istringstream in(r.out);
       std::string line;
       while (std::getline(in, line)) {
@@ -332,7 +431,7 @@ int printBatchStatus(const fs::path& dir) {
     }
   }
 
-  std::size_t done = 0, running = 0, queued = 0, failed = 0, unstarted = 0;
+  std::size_t done = 0, running = 0, queued = 0, failed = 0, unstarted = 0, unknown = 0;
   for (const auto& [name, source] : named) {
     std::string state, detail;
     const fs::path log = dir / "logs" / (name + ".log");
@@ -343,6 +442,9 @@ int printBatchStatus(const fs::path& dir) {
     } else if (scanComplete(dir / name, source)) {
       state = "done";
       ++done;
+    } else if (!slurm_note.empty()) {
+      state = "unknown";  // perhaps queued or running: Slurm could not be asked
+      ++unknown;
     } else if (fs::exists(log)) {
       state = "failed";
       detail = lastErrorLine(log);
@@ -356,14 +458,19 @@ int printBatchStatus(const fs::path& dir) {
   }
   std::printf("batch         %zu done, %zu running, %zu queued, %zu failed, %zu not started\n", done,
               running, queued, failed, unstarted);
+  if (unknown > 0) std::printf("unknown       %zu (not complete; Slurm could not say)\n", unknown);
   if (jobs.is_object()) {
     std::printf("merge         %s\n",
-                !merge_state.empty() ? merge_state.c_str()
+                !slurm_note.empty()  ? "unknown"
+                : !merge_state.empty() ? merge_state.c_str()
                 : fs::exists(dir / "index.html")
                     ? "ended (index.html written)"
                     : "not in the queue, and no index.html (cancelled, or failed: see slurm/logs/)");
   }
-  if (!slurm_note.empty()) std::printf("slurm         %s\n", slurm_note.c_str());
+  if (!slurm_note.empty()) {
+    log::error("cannot ask Slurm where the batch's jobs stand: " + slurm_note);
+    return kExitRuntimeFailure;
+  }
   return kExitSuccess;
 }
 

@@ -28,6 +28,18 @@ struct BatchPlan {
   bool no_catalog = false;
 };
 
+/// Throws std::invalid_argument when an option value cannot go into an sbatch script (a space
+/// or a control character in --partition, --time, --mem; a control character or '%' ... in the
+/// folder's or objscan's path).
+void checkSlurmOptions(const SlurmOptions& options, const std::filesystem::path& out);
+/// Throws std::invalid_argument for a source that cannot go into the task list (a tab, a line
+/// break, any control character).
+void checkSlurmSource(const std::string& source);
+/// Throws std::runtime_error when jobs of an earlier Slurm submission into `out` (its
+/// slurm/jobs.json) are still queued or running. Nothing when there was none, or when squeue
+/// cannot say (a warning then).
+void requireNoQueuedJobs(const std::filesystem::path& out);
+
 /// Writes DIR/slurm/ (recordings.txt, scan.sbatch, merge.sbatch, submit.sh) and runs submit.sh:
 /// one job array of the pending recordings, and the merge (`objscan batch --finish DIR`) after it
 /// (afterok, or afternotok: once either way). Prints the job ids and how to follow them; records

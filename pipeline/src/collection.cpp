@@ -39,6 +39,17 @@ std::string recordingOf(const report::SceneRecord& s) {
   return mesh.parent_path().filename().string();
 }
 
+/// A path as one shell word: as it is when it holds only safe characters, else in single quotes.
+std::string shellQuoted(const std::string& text) {
+  if (!text.empty() && text.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ"
+                                              "0123456789/._-+=:,") == std::string::npos) {
+    return text;
+  }
+  std::string out = "'";
+  for (const char c : text) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return out + "'";
+}
+
 Eigen::Vector3f decreasing(Eigen::Vector3f e) {
   std::sort(e.data(), e.data() + 3, std::greater<float>());
   return e;
@@ -64,7 +75,9 @@ class PageBuilder {
     hypotheses_ = report::readHypotheses(dir / "collection" / report::kHypothesesFile);
     page_.title = dir.string();
     page_.viewer_url = options.viewer_url;
-    page_.view_command = "objscan view " + (dir / "collection").string();
+    // At the address the links name: a viewer already there makes this one fail, not move.
+    page_.view_command = "objscan view " + shellQuoted((dir / "collection").string()) +
+                         " --serve 127.0.0.1:8090";
     std::map<std::string, std::string> sources;
     for (const CollectionRecording& r : recordings) sources.emplace(r.name, r.source);
     for (std::size_t i = 0; i < hypotheses_.scenes.size(); ++i) {
@@ -287,10 +300,17 @@ std::size_t renderScene(const fs::path& dir, const report::SceneRecord& scene,
   for (const PictureJob& job : jobs) {
     if (job.rank > 0) objects.push_back({job.rank, job.score, job.vertices, true});
   }
-  const render::SnapshotView view = render::overviewView(mesh, nullptr, objects, 4 * size,
-                                                         3 * size, render::ViewKind::kThreeQuarter);
+  render::SnapshotView view;
   std::optional<render::SnapshotRenderer> ranked;
-  if (!objects.empty()) ranked.emplace(mesh, objects);
+  try {
+    view = render::overviewView(mesh, nullptr, objects, 4 * size, 3 * size,
+                                render::ViewKind::kThreeQuarter);
+    if (!objects.empty()) ranked.emplace(mesh, objects);
+  } catch (const std::exception& e) {
+    log::warning(std::string("collection page: no pictures of a scene: ") + e.what());
+    progress.advance(jobs.size());
+    return jobs.size();
+  }
   std::size_t failed = 0, object = 0;
   for (PictureJob& job : jobs) {
     try {

@@ -456,10 +456,10 @@ HttpServer::HttpServer(const ServeAddress& address, Handler handler,
 }
 
 HttpServer::~HttpServer() {
-  // Replies being written are finished first (at most 1 s: a long poll answers within that).
+  // Replies being written are finished first (at most 2 s: a long poll answers within 1 s).
   const auto start = std::chrono::steady_clock::now();
   while (impl_->in_flight.load() > 0 &&
-         std::chrono::steady_clock::now() - start < std::chrono::seconds(1)) {
+         std::chrono::steady_clock::now() - start < std::chrono::seconds(2)) {
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }
   if (impl_->context) mg_stop(impl_->context);

@@ -158,6 +158,8 @@ TEST(BatchCli, ScansEachRecordingIntoItsOwnFolderAndARerunKeepsCompleteResults) 
     }
   }
   EXPECT_EQ(labels, 1u);
+  // The catalog it replaced is kept beside it, label and history.
+  EXPECT_EQ(discovery::Catalog(out / "catalog.previous.sqlite").scenes().size(), 3u);
 }
 
 TEST(BatchCli, AFailedRecordingIsReportedTheOthersAreScannedAndARerunFillsTheGap) {

@@ -6,6 +6,7 @@
 #include <sqlite3.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
@@ -185,6 +186,12 @@ TEST_F(SlurmBatch, ACancelledTaskIsReportedAndTheRerunFillsTheGap) {
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
   const nlohmann::json jobs = nlohmann::json::parse(readWholeFile(out / "slurm" / "jobs.json"));
   const std::string task = jobs.at("array").get<std::string>() + "_2";
+  // While its jobs are queued or running, the batch is not submitted again, nor run here: two
+  // scans would write one folder.
+  testing::expectOneErrorLine(objscan(args), 1, "still queued or running");
+  std::vector<std::string> here = args;
+  here.erase(std::find(here.begin(), here.end(), "--slurm"));
+  testing::expectOneErrorLine(objscan(here), 1, "still queued or running");
   // Cancelled once it is fusing (its log says so).
   bool fusing = false;
   for (int i = 0; i < 1200 && !fusing; ++i) {

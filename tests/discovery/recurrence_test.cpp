@@ -139,9 +139,8 @@ TEST(Recurrence, RejectsMeaninglessArguments) {
   EXPECT_THROW(index.recurrences({}, 2, -1), std::invalid_argument);
 }
 
-/// The paper's definition read literally: normalise over all entries, scan all of them.
-double bruteForce(const std::vector<RecurrenceEntry>& entries, const RecurrenceEntry& q,
-                  std::int64_t exclude, int k, double window) {
+/// Each measure's population standard deviation over the entries.
+std::array<double, 5> standardDeviations(const std::vector<RecurrenceEntry>& entries) {
   std::array<double, 5> mean{}, sd{};
   for (std::size_t j = 0; j < 5; ++j) {
     for (const auto& e : entries) mean[j] += e.measures[j];
@@ -149,6 +148,13 @@ double bruteForce(const std::vector<RecurrenceEntry>& entries, const RecurrenceE
     for (const auto& e : entries) sd[j] += (e.measures[j] - mean[j]) * (e.measures[j] - mean[j]);
     sd[j] = std::sqrt(sd[j] / static_cast<double>(entries.size()));
   }
+  return sd;
+}
+
+/// The paper's definition read literally: normalise over all entries, scan all of them.
+double bruteForce(const std::vector<RecurrenceEntry>& entries, const RecurrenceEntry& q,
+                  std::int64_t exclude, int k, double window) {
+  const std::array<double, 5> sd = standardDeviations(entries);
   std::vector<double> distances;
   for (const auto& e : entries) {
     if (e.scene_id == exclude) continue;
@@ -220,13 +226,7 @@ TEST(Recurrence, NearestAreTheBruteForcesNearestInOrderAndAverageToTheRecurrence
   const std::vector<RecurrenceEntry> entries = randomEntries(&rng, 2000, 7);
   const std::vector<RecurrenceEntry> queries = randomEntries(&rng, 40, 1);
   const RecurrenceIndex index(entries);
-  std::array<double, 5> mean{}, sd{};
-  for (std::size_t j = 0; j < 5; ++j) {
-    for (const auto& e : entries) mean[j] += e.measures[j];
-    mean[j] /= static_cast<double>(entries.size());
-    for (const auto& e : entries) sd[j] += (e.measures[j] - mean[j]) * (e.measures[j] - mean[j]);
-    sd[j] = std::sqrt(sd[j] / static_cast<double>(entries.size()));
-  }
+  const std::array<double, 5> sd = standardDeviations(entries);
   std::size_t checked = 0;
   for (const RecurrenceEntry& q : queries) {
     std::vector<std::pair<double, std::size_t>> all;
