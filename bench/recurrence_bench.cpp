@@ -206,7 +206,7 @@ int run(int argc, char** argv) {
     std::vector<double> read_ms, index_ms, lookup_ms, nearest_ms, peer1_ms, peer_ms;
     std::vector<double> got, expected;
     std::vector<RecurrenceEntry> entries;
-    const double before = objscan::bench::statusBytes("VmRSS:");
+    const double before = objscan::bench::statusBytes("VmRSS");
     double used = 0.0;  // resident memory above the start, with the entries and the index held
     for (int repeat = 0; repeat < 3; ++repeat) {
       auto t = Clock::now();
@@ -221,7 +221,7 @@ int run(int argc, char** argv) {
       t = Clock::now();
       const auto nearest = index.nearest(queries[0].extents, queries[0].measures, -1);
       nearest_ms.push_back(msSince(t));
-      used = std::max(used, objscan::bench::statusBytes("VmRSS:") - before);
+      used = std::max(used, objscan::bench::statusBytes("VmRSS") - before);
       (void)nearest;
     }
     for (int repeat = 0; repeat < (n >= 1000000 ? 1 : 3); ++repeat) {
