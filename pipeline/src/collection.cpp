@@ -55,6 +55,25 @@ Eigen::Vector3f decreasing(Eigen::Vector3f e) {
   return e;
 }
 
+/// Whether two segments of one scene share more than half of the smaller one's vertices (the
+/// same object at two scales). Vertex lists are increasing.
+bool mostlyShared(const discovery::CatalogSegment& a, const discovery::CatalogSegment& b) {
+  std::size_t shared = 0;
+  auto i = a.vertices.begin(), j = b.vertices.begin();
+  while (i != a.vertices.end() && j != b.vertices.end()) {
+    if (*i < *j) {
+      ++i;
+    } else if (*j < *i) {
+      ++j;
+    } else {
+      ++shared;
+      ++i;
+      ++j;
+    }
+  }
+  return 2 * shared > std::min(a.vertices.size(), b.vertices.size());
+}
+
 /// A picture to render: a segment of a scene, ranked (painted in its rank's colour with the
 /// rank in its corner, together with the scene's other objects, which never overlap) or not (on
 /// its own).
@@ -142,14 +161,23 @@ class PageBuilder {
       group.query = hypothesisItem(h, scene->second);
       group.query.segment = segment->id;
       group.query.extents = decreasing(segment->extents);
+      // One segment per object: the catalog holds an object at several scales, and the same
+      // object twice says nothing; three times the neighbours are asked for to fill the row.
+      std::vector<std::pair<std::int64_t, const discovery::CatalogSegment*>> shown;
       for (const discovery::RecurrenceNeighbour& n :
            index.nearest(segment->extents, discovery::recurrenceMeasures(segment->measures),
-                         *catalog_scene, options_.neighbours)) {
+                         *catalog_scene, 3 * options_.neighbours)) {
+        if (group.neighbours.size() >= static_cast<std::size_t>(options_.neighbours)) break;
         const auto [scene_id, segment_id] = ids[n.entry];
         const auto neighbour_scene = scene_of_catalog_.find(scene_id);
         if (neighbour_scene == scene_of_catalog_.end()) continue;  // not among the scenes shown
         const discovery::CatalogSegment* found = segmentWithId(scene_id, segment_id);
         if (!found) continue;
+        const bool again = std::any_of(shown.begin(), shown.end(), [&](const auto& other) {
+          return other.first == scene_id && mostlyShared(*other.second, *found);
+        });
+        if (again) continue;
+        shown.emplace_back(scene_id, found);
         group.neighbours.push_back(segmentItem(*found, neighbour_scene->second, n.distance));
       }
       page_.groups.push_back(std::move(group));
