@@ -1046,10 +1046,7 @@ TEST(ViewPage, TheCollectionPageShowsTheScenesAndItsLinksOpenTheirObjectsInTheVi
       ++neighbours;
       const std::string href = n["href"];
       // One on a scene other than the first, which the viewer shows unasked.
-      if (link.empty() && href.find("&segment=") != std::string::npos &&
-          href.find("#scene=0&") == std::string::npos) {
-        link = href;
-      }
+      if (link.empty() && href.find("#scene=0&") == std::string::npos) link = href;
     }
   }
   EXPECT_GT(neighbours, 0u);
@@ -1057,16 +1054,19 @@ TEST(ViewPage, TheCollectionPageShowsTheScenesAndItsLinksOpenTheirObjectsInTheVi
   // The link names the viewer's default address; the viewer here listens on a free port.
   const std::string prefix = "http://127.0.0.1:8090/#scene=";
   ASSERT_EQ(link.rfind(prefix, 0), 0u) << link;
+  // #scene=I&rank=N selects hypothesis N; #scene=I&segment=ID puts segment ID up for labelling.
   const std::string hash = link.substr(link.find('#'));
-  const std::string scene = hash.substr(7, hash.find('&') - 7);
-  const std::string segment = hash.substr(hash.find("&segment=") + 9);
+  const std::size_t amp = hash.find('&'), equals = hash.find('=', amp);
+  const std::string scene = hash.substr(7, amp - 7);
+  const std::string selected =
+      hash.substr(amp + 1, equals - amp - 1) + ":" + hash.substr(equals + 1);
+  ASSERT_TRUE(selected.rfind("rank:", 0) == 0 || selected.rfind("segment:", 0) == 0) << hash;
   int port = 0;
   auto view = startView(out / "collection", &port);
   ASSERT_GT(port, 0);
   page.navigate("http://127.0.0.1:" + std::to_string(port) + "/" + hash);
-  EXPECT_TRUE(page.waitFor("document.body.getAttribute('data-selected') === 'segment:" + segment +
-                               "'",
-                           60))
+  EXPECT_TRUE(
+      page.waitFor("document.body.getAttribute('data-selected') === '" + selected + "'", 60))
       << page.evaluate("document.body.getAttribute('data-selected')").dump() << page.console();
   EXPECT_EQ(page.evaluate("String(state.scene)"), scene);
   EXPECT_EQ(page.evaluate("document.getElementById('scene').value"), scene);
