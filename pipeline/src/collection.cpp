@@ -173,8 +173,9 @@ class PageBuilder {
         if (neighbour_scene == scene_of_catalog_.end()) continue;  // not among the scenes shown
         const discovery::CatalogSegment* found = segmentWithId(scene_id, segment_id);
         if (!found) continue;
+        const std::int64_t in_scene = scene_id;  // (clang 14 captures no structured binding)
         const bool again = std::any_of(shown.begin(), shown.end(), [&](const auto& other) {
-          return other.first == scene_id && mostlyShared(*other.second, *found);
+          return other.first == in_scene && mostlyShared(*other.second, *found);
         });
         if (again) continue;
         shown.emplace_back(scene_id, found);
