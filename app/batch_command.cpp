@@ -439,9 +439,13 @@ std::pair<std::size_t, std::size_t> writeCollectionCatalog(
   }
   // The earlier catalog is kept beside it, with every label and its history, until the next
   // batch: the labels of a recording that is not complete this time are not in the new one.
+  // A second name for it first, then the new one renamed over it: at no moment is there no
+  // catalog.sqlite.
   std::error_code ec;
   if (fs::exists(out / "catalog.sqlite")) {
-    fs::rename(out / "catalog.sqlite", out / "catalog.previous.sqlite", ec);
+    fs::remove(out / "catalog.previous.sqlite", ec);
+    fs::create_hard_link(out / "catalog.sqlite", out / "catalog.previous.sqlite", ec);
+    if (ec) fs::copy_file(out / "catalog.sqlite", out / "catalog.previous.sqlite", ec);
     if (ec) {
       throw OutputError(out / "catalog.sqlite", "cannot keep it as catalog.previous.sqlite: " +
                                                     ec.message());
