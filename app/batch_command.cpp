@@ -592,9 +592,6 @@ int runBatch(const BatchCommandOptions& options) {
   if (options.slurm.enabled) {
     for (const auto& [name, source] : named) checkSlurmSource(source);
   }
-  // Nothing of an earlier Slurm submission into DIR may still run: its tasks read
-  // DIR/slurm/recordings.txt, and two scans of one recording would write one folder.
-  requireNoQueuedJobs(options.out);
 
   // A folder holding another source's results is not scanned over: they would be lost.
   for (const auto& [name, source] : named) {
@@ -616,6 +613,9 @@ int runBatch(const BatchCommandOptions& options) {
   }
 
   std::optional<OutputFolderLock> lock = prepareOutputFolder(options.out);
+  // Nothing of an earlier Slurm submission into DIR may still run: two scans of one recording
+  // would write one folder.
+  requireNoQueuedJobs(options.out);
   fs::create_directories(options.out / "logs");
   if (!no_catalog) fs::create_directories(options.out / "catalogs");
   nlohmann::json batch = {{"format", "objscan batch, version 1"},

@@ -165,7 +165,12 @@ std::string outputPattern(const fs::path& folder, const std::string& file) {
 /// Job ids in DIR/slurm/jobs.json.
 nlohmann::json readJobs(const fs::path& dir) {
   try {
-    return nlohmann::json::parse(readWholeFile(dir / "slurm" / "jobs.json"));
+    nlohmann::json j = nlohmann::json::parse(readWholeFile(dir / "slurm" / "jobs.json"));
+    // The shape the readers rely on; anything else is as good as no file.
+    j.at("array").get<std::string>();
+    j.at("merge").get<std::vector<std::string>>();
+    j.at("recordings").get<std::vector<std::string>>();
+    return j;
   } catch (const std::exception&) {
     return nullptr;
   }
@@ -190,6 +195,8 @@ std::vector<std::string> queuedJobs(const nlohmann::json& jobs, std::string* err
   std::vector<std::string> queued;
   try {
     const ToolResult r = runTool({"squeue", "-h", "-o", "%i", "-j", ids});
+    // Jobs Slurm has forgotten (past MinJobAge): squeue says so for a single id.
+    if (r.status != 0 && r.err.find("Invalid job id") != std::string::npos) return queued;
     if (r.status != 0) {
       *error = "squeue failed: " + lastLine(r.err);
       return queued;
@@ -211,10 +218,16 @@ void checkSlurmOptions(const SlurmOptions& options, const fs::path& out) {
   checkSbatchValue("--partition", options.partition);
   checkSbatchValue("--time", options.time);
   checkSbatchValue("--mem", options.mem);
-  if (hasControl(fs::absolute(out).string()) || hasControl(objscanBinary().string())) {
+  const std::string folder = fs::absolute(out).string();
+  if (hasControl(folder) || hasControl(objscanBinary().string())) {
     throw std::invalid_argument(
         "--slurm: the folder's path, or objscan's, holds a control character, which cannot go "
         "into an sbatch script");
+  }
+  if (folder.find('\\') != std::string::npos) {
+    throw std::invalid_argument(
+        "--slurm: the folder's path holds a backslash, which sbatch's "
+        "--output reads as 'do not expand'");
   }
 }
 
@@ -262,24 +275,31 @@ int submitToSlurm(const BatchPlan& plan, const SlurmOptions& options) {
   // The recordings of this submission, one a line: array task i scans line i + 1.
   std::string list;
   for (const std::size_t i : plan.pending) list += plan.named[i].first + "\t" + plan.named[i].second + "\n";
-  writeFileAtomically(slurm / "recordings.txt", list);
+  // A list of its own for each submission: a task still queued from an earlier one (submit.sh
+  // run again by hand) reads its own.
+  const std::string list_name = "recordings-" + std::to_string(std::time(nullptr)) + "-" +
+                                std::to_string(::getpid()) + ".txt";
+  writeFileAtomically(slurm / list_name, list);
 
   std::string scan_args;
   for (const std::string& a : plan.scan_args) scan_args += " " + shellWord(a);
   const std::string dir = shellWord(out.string());
   std::string scan =
       "#!/bin/bash\n"
-      "# objscan batch --slurm: array task i scans line i + 1 of recordings.txt into DIR/<name>/,\n"
+      "# objscan batch --slurm: array task i scans line i + 1 of the list given as $1 (name, tab,\n"
+      "# source) into DIR/<name>/,\n"
       "# with its own catalog DIR/catalogs/<name>.sqlite, its output appended to\n"
       "# DIR/logs/<name>.log. Submitted by submit.sh beside it.\n" +
       sbatchOptions(options, "objscan-scan", memory) +
       "#SBATCH --cpus-per-task=" + std::to_string(kCpusPerTask) +
       "\nset -u\n"
-      "dir=" + dir + "\n" +
-      "line=$(sed -n \"$((SLURM_ARRAY_TASK_ID + 1))p\" \"$dir/slurm/recordings.txt\")\n"
+      "dir=" +
+      dir + "\n" +
+      "line=$(sed -n \"$((SLURM_ARRAY_TASK_ID + 1))p\" \"$1\")\n"
       "name=${line%%$'\\t'*}\n"
       "source=${line#*$'\\t'}\n"
-      "[[ -n $name && $name != \"$line\" ]] || { echo \"no recording $SLURM_ARRAY_TASK_ID\" >&2; exit 2; }\n"
+      "[[ -n $name && $name != \"$line\" ]] || { echo \"no recording $SLURM_ARRAY_TASK_ID\" >&2; "
+      "exit 2; }\n"
       "log=\"$dir/logs/$name.log\"\n";
   if (!plan.no_catalog) {
     scan +=
@@ -309,14 +329,16 @@ int submitToSlurm(const BatchPlan& plan, const SlurmOptions& options) {
   if (options.max_running) array += "%" + std::to_string(*options.max_running);
   const std::string submit =
       "#!/bin/bash\n"
-      "# What objscan batch --slurm ran to submit this batch: the scans as one job array, then the\n"
+      "# What objscan batch --slurm ran to submit this batch: the scans as one job array, then "
+      "the\n"
       "# merge once they have all ended, whichever way (afterok, or afternotok; the other of the\n"
       "# two is dropped by Slurm). Prints the three job ids. Run it again to submit it again.\n"
       "set -euo pipefail\n"
-      "dir=" + dir + "\n" +
-      "array=$(sbatch --parsable --array=" + array + " --output=" +
-      shellWord(outputPattern(slurm / "logs", "scan-%A_%a.out")) +
-      " \"$dir/slurm/scan.sbatch\")\n"
+      "dir=" +
+      dir + "\n" + "array=$(sbatch --parsable --array=" + array +
+      " --output=" + shellWord(outputPattern(slurm / "logs", "scan-%A_%a.out")) +
+      " \"$dir/slurm/scan.sbatch\" \"$dir/slurm/" + list_name +
+      "\")\n"
       "array=${array%%;*}\n"
       "echo \"$array\"\n"
       "for after in afterok afternotok; do\n"
@@ -329,6 +351,8 @@ int submitToSlurm(const BatchPlan& plan, const SlurmOptions& options) {
   fs::permissions(slurm / "submit.sh", fs::perms::owner_exec | fs::perms::group_exec,
                   fs::perm_options::add, perms_error);
 
+  nlohmann::json pending_names = nlohmann::json::array();
+  for (const std::size_t i : plan.pending) pending_names.push_back(plan.named[i].first);
   const ToolResult r = runTool({"bash", (slurm / "submit.sh").string()});
   std::vector<std::string> ids;
   {
@@ -346,13 +370,13 @@ int submitToSlurm(const BatchPlan& plan, const SlurmOptions& options) {
       submitted += id;
     }
     if (!ids.empty()) {
-      writeFileAtomically(slurm / "jobs.json",
-                          nlohmann::json({{"array", ids[0]},
-                                          {"merge", std::vector<std::string>(ids.begin() + 1,
-                                                                             ids.end())},
-                                          {"recordings", nlohmann::json::array()}})
-                                  .dump(2) +
-                              "\n");
+      writeFileAtomically(
+          slurm / "jobs.json",
+          nlohmann::json({{"array", ids[0]},
+                          {"merge", std::vector<std::string>(ids.begin() + 1, ids.end())},
+                          {"recordings", pending_names}})
+                  .dump(2) +
+              "\n");
     }
     throw std::runtime_error("sbatch failed" + (why.empty() ? std::string() : ": " + why) +
                              (ids.empty() ? std::string()
@@ -363,7 +387,7 @@ int submitToSlurm(const BatchPlan& plan, const SlurmOptions& options) {
                          {"merge", {ids[1], ids[2]}},
                          {"submitted", static_cast<std::int64_t>(std::time(nullptr))},
                          {"recordings", nlohmann::json::array()}};
-  for (const std::size_t i : plan.pending) jobs["recordings"].push_back(plan.named[i].first);
+  jobs["recordings"] = pending_names;
   writeFileAtomically(slurm / "jobs.json", jobs.dump(2) + "\n");
   std::printf("slurm         job array %s: %zu recordings%s; merge job %s (or %s if a scan fails)\n",
               ids[0].c_str(), n,
@@ -409,7 +433,9 @@ int printBatchStatus(const fs::path& dir) {
     }
     try {
       const ToolResult r = runTool({"squeue", "-h", "-r", "-o", "%i|%T", "-j", ids});
-      if (r.status != 0) slurm_note = "squeue failed: " + lastLine(r.err);
+      if (r.status != 0 && r.err.find("Invalid job id") == std::string::npos) {
+        slurm_note = "squeue failed: " + lastLine(r.err);
+      }
       std::istringstream in(r.out);
       std::string line;
       while (std::getline(in, line)) {

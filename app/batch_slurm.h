@@ -29,8 +29,8 @@ struct BatchPlan {
 };
 
 /// Throws std::invalid_argument when an option value cannot go into an sbatch script (a space
-/// or a control character in --partition, --time, --mem; a control character or '%' ... in the
-/// folder's or objscan's path).
+/// or a control character in --partition, --time, --mem; a control character in the folder's
+/// or objscan's path, a backslash in the folder's).
 void checkSlurmOptions(const SlurmOptions& options, const std::filesystem::path& out);
 /// Throws std::invalid_argument for a source that cannot go into the task list (a tab, a line
 /// break, any control character).
@@ -40,11 +40,11 @@ void checkSlurmSource(const std::string& source);
 /// cannot say (a warning then).
 void requireNoQueuedJobs(const std::filesystem::path& out);
 
-/// Writes DIR/slurm/ (recordings.txt, scan.sbatch, merge.sbatch, submit.sh) and runs submit.sh:
-/// one job array of the pending recordings, and the merge (`objscan batch --finish DIR`) after it
-/// (afterok, or afternotok: once either way). Prints the job ids and how to follow them; records
-/// them in DIR/slurm/jobs.json. Returns the exit code. Throws std::runtime_error when sbatch
-/// fails (its own message).
+/// Writes DIR/slurm/ (recordings-STAMP.txt, scan.sbatch, merge.sbatch, submit.sh) and runs
+/// submit.sh: one job array of the pending recordings, and the merge (`objscan batch --finish DIR`)
+/// after it (afterok, or afternotok: once either way). Prints the job ids and how to follow them;
+/// records them in DIR/slurm/jobs.json. Returns the exit code. Throws std::runtime_error when
+/// sbatch fails (its own message).
 int submitToSlurm(const BatchPlan& plan, const SlurmOptions& options);
 
 /// `objscan batch --status DIR`: each recording done, running, queued, failed or not started,
