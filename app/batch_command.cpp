@@ -165,6 +165,29 @@ pid_t spawnScan(const std::vector<std::string>& args, const fs::path& log) {
 constexpr std::string_view kLogHeader = "---- objscan batch: ";
 
 /// The last error line of the latest run in a scan's log, for the batch's summary.
+BatchFile readBatchFile(const fs::path& dir) {
+  const fs::path file = dir / "batch.json";
+  nlohmann::json batch;
+  try {
+    batch = nlohmann::json::parse(readWholeFile(file));
+  } catch (const InputError&) {
+    throw InputError(file, "missing or unreadable: not the folder of a batch");
+  } catch (const std::exception&) {
+    throw InputError(file, "damaged");
+  }
+  BatchFile out;
+  try {
+    for (const nlohmann::json& r : batch.at("recordings")) {
+      out.named.emplace_back(r.at("name").get<std::string>(), r.at("source").get<std::string>());
+    }
+    out.scan_args = batch.at("scan_options").get<std::vector<std::string>>();
+  } catch (const std::exception&) {
+    throw InputError(file, "damaged: no recordings or scan options");
+  }
+  if (out.named.empty()) throw InputError(file, "lists no recording");
+  return out;
+}
+
 std::string lastErrorLine(const fs::path& log) {
   std::ifstream in(log);
   std::string line, error;
@@ -514,23 +537,7 @@ std::size_t endBatch(const fs::path& out, const std::vector<std::pair<std::strin
 /// job runs it once the scans have ended). Every recording without complete results is an error
 /// line; exit 1 then.
 int finishBatch(const fs::path& out) {
-  nlohmann::json batch;
-  try {
-    batch = nlohmann::json::parse(readWholeFile(out / "batch.json"));
-  } catch (const std::exception&) {
-    throw InputError(out / "batch.json", "missing or damaged: not the folder of a batch");
-  }
-  std::vector<std::pair<std::string, std::string>> named;
-  std::vector<std::string> scan_args;
-  try {
-    for (const nlohmann::json& r : batch.at("recordings")) {
-      named.emplace_back(r.at("name").get<std::string>(), r.at("source").get<std::string>());
-    }
-    scan_args = batch.at("scan_options").get<std::vector<std::string>>();
-  } catch (const std::exception&) {
-    throw InputError(out / "batch.json", "damaged: no recordings or scan options");
-  }
-  if (named.empty()) throw InputError(out / "batch.json", "lists no recording");
+  const auto [named, scan_args] = readBatchFile(out);
   const ScanCommandOptions scan_options = checkScanArgs(scan_args, named.front().second);
   const OutputFolderLock lock = prepareOutputFolder(out);
   for (const auto& [name, source] : named) {

@@ -3,6 +3,7 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "batch_slurm.h"
@@ -33,6 +34,15 @@ std::vector<std::string> readSourceList(const std::filesystem::path& file);
 /// that was not cut short: hypotheses.json, report.html and timings.json, read back by the
 /// results model, with no interruption and no sensor lost. A batch run again skips those.
 bool scanComplete(const std::filesystem::path& dir, const std::string& source);
+
+/// DIR/batch.json, as a batch wrote it: its recordings (name, source) and the options after --.
+struct BatchFile {
+  std::vector<std::pair<std::string, std::string>> named;
+  std::vector<std::string> scan_args;
+};
+/// Throws InputError naming DIR/batch.json when it is missing ("not the folder of a batch"),
+/// damaged, or lists no recording.
+BatchFile readBatchFile(const std::filesystem::path& dir);
 
 /// The last error line of the latest run in a scan's log ("see LOG" when it has none).
 std::string lastErrorLine(const std::filesystem::path& log);

@@ -184,32 +184,34 @@ fs::path objscanBinary() {
   return exe;
 }
 
-/// The ids of DIR's jobs (slurm/jobs.json) that squeue still lists; nothing when squeue cannot
-/// be asked (its message in `error`).
-std::vector<std::string> queuedJobs(const nlohmann::json& jobs, std::string* error) {
-  std::string ids = jobs.value("array", "");
-  for (const nlohmann::json& m : jobs.value("merge", nlohmann::json::array())) {
+/// squeue's lines (`-o FORMAT`, array tasks one a line) for the jobs of DIR's jobs.json (the
+/// array and the merge jobs) still queued or running; none when squeue cannot be asked (its
+/// message in `error`).
+std::vector<std::string> queueLines(const nlohmann::json& jobs, const char* format,
+                                    std::string* error) {
+  std::string ids = jobs.at("array").get<std::string>();
+  for (const nlohmann::json& m : jobs.at("merge")) {
     ids += ',';
     ids += m.get<std::string>();
   }
-  std::vector<std::string> queued;
+  std::vector<std::string> lines;
   try {
-    const ToolResult r = runTool({"squeue", "-h", "-o", "%i", "-j", ids});
+    const ToolResult r = runTool({"squeue", "-h", "-r", "-o", format, "-j", ids});
     // Jobs Slurm has forgotten (past MinJobAge): squeue says so for a single id.
-    if (r.status != 0 && r.err.find("Invalid job id") != std::string::npos) return queued;
+    if (r.status != 0 && r.err.find("Invalid job id") != std::string::npos) return lines;
     if (r.status != 0) {
       *error = "squeue failed: " + lastLine(r.err);
-      return queued;
+      return lines;
     }
     std::istringstream in(r.out);
     std::string line;
     while (std::getline(in, line)) {
-      if (!line.empty()) queued.push_back(line);
+      if (!line.empty()) lines.push_back(line);
     }
   } catch (const std::exception& e) {
     *error = e.what();
   }
-  return queued;
+  return lines;
 }
 
 }  // namespace
@@ -243,7 +245,7 @@ void requireNoQueuedJobs(const fs::path& out) {
   const nlohmann::json jobs = readJobs(out);
   if (!jobs.is_object()) return;
   std::string error;
-  const std::vector<std::string> queued = queuedJobs(jobs, &error);
+  const std::vector<std::string> queued = queueLines(jobs, "%i", &error);
   if (!error.empty()) {
     log::warning("cannot ask Slurm whether the jobs of the earlier submission into this folder "
                  "have ended (" + error + ")");
@@ -400,60 +402,28 @@ int submitToSlurm(const BatchPlan& plan, const SlurmOptions& options) {
 }
 
 int printBatchStatus(const fs::path& dir) {
-  nlohmann::json batch;
-  try {
-    batch = nlohmann::json::parse(readWholeFile(dir / "batch.json"));
-  } catch (const InputError&) {
-    throw InputError(dir / "batch.json", "missing or unreadable: not the folder of a batch");
-  } catch (const std::exception&) {
-    throw InputError(dir / "batch.json", "damaged");
-  }
-  std::vector<std::pair<std::string, std::string>> named;
-  try {
-    for (const nlohmann::json& r : batch.at("recordings")) {
-      named.emplace_back(r.at("name").get<std::string>(), r.at("source").get<std::string>());
-    }
-  } catch (const std::exception&) {
-    throw InputError(dir / "batch.json", "damaged: no list of recordings");
-  }
+  const std::vector<std::pair<std::string, std::string>> named = readBatchFile(dir).named;
 
   // From Slurm: the array tasks queued or running, by recording, and the merge job's state.
   std::map<std::string, std::string> queue;  // name -> RUNNING, PENDING, ...
   std::string merge_state, slurm_note;
   const nlohmann::json jobs = readJobs(dir);
   if (jobs.is_object()) {
-    std::vector<std::string> submitted;
-    for (const nlohmann::json& n : jobs.value("recordings", nlohmann::json::array())) {
-      submitted.push_back(n.get<std::string>());
-    }
-    const std::string array = jobs.value("array", "");
-    std::string ids = array;
-    for (const nlohmann::json& m : jobs.value("merge", nlohmann::json::array())) {
-      ids += "," + m.get<std::string>();
-    }
-    try {
-      const ToolResult r = runTool({"squeue", "-h", "-r", "-o", "%i|%T", "-j", ids});
-      if (r.status != 0 && r.err.find("Invalid job id") == std::string::npos) {
-        slurm_note = "squeue failed: " + lastLine(r.err);
-      }
-      std::istringstream in(r.out);
-      std::string line;
-      while (std::getline(in, line)) {
-        const std::size_t bar = line.find('|');
-        if (bar == std::string::npos) continue;
-        const std::string id = line.substr(0, bar), state = line.substr(bar + 1);
-        if (id.rfind(array + "_", 0) == 0) {
-          try {
-            const std::size_t task = std::stoul(id.substr(array.size() + 1));
-            if (task < submitted.size()) queue[submitted[task]] = state;
-          } catch (const std::exception&) {
-          }
-        } else {
-          merge_state = state;
+    const auto submitted = jobs.at("recordings").get<std::vector<std::string>>();
+    const std::string array = jobs.at("array").get<std::string>();
+    for (const std::string& line : queueLines(jobs, "%i|%T", &slurm_note)) {
+      const std::size_t bar = line.find('|');
+      if (bar == std::string::npos) continue;
+      const std::string id = line.substr(0, bar), state = line.substr(bar + 1);
+      if (id.rfind(array + "_", 0) == 0) {
+        try {
+          const std::size_t task = std::stoul(id.substr(array.size() + 1));
+          if (task < submitted.size()) queue[submitted[task]] = state;
+        } catch (const std::exception&) {
         }
+      } else {
+        merge_state = state;
       }
-    } catch (const std::exception& e) {
-      slurm_note = e.what();
     }
   }
 
