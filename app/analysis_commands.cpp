@@ -33,7 +33,7 @@ Command addDiscoverCommand(CLI::App& app) {
       ->required();
   discover->add_option("--frame", discover_options.frame,
                        "Discover objects in this one frame (0-based) of each <source> (a "
-                       "recording, a dataset folder, synth:<seed>, live, virtual:...)");
+                       "recording, a dataset folder, synth:<seed>, live, freenect, virtual:...)");
   discover->add_option("--out", discover_options.out, "Folder for hypotheses.json and objects/")
       ->required();
   auto* catalog_option =
@@ -178,10 +178,10 @@ CLI::App* addScanOptions(CLI::App& app, const std::shared_ptr<ScanFlags>& state)
       "  objscan scan recordings/tum_fr2_desk.oni --out out/demo\n"
       "  objscan scan --out out/live --record out/live.oni --seconds 20   (the first sensor)\n"
       "  objscan scan --config out/demo/settings.json --out out/again      (repeat a run)");
-  scan->add_option(
-      "source", scan_options.source,
-      "X.oni, a TUM or 7-Scenes folder, synth:<seed>, virtual:<source>, or live[:uri]; "
-      "default: the first live sensor");
+  scan->add_option("source", scan_options.source,
+                   "X.oni, a TUM or 7-Scenes folder, synth:<seed>, virtual:<source>, live[:uri] or "
+                   "freenect[:i]; "
+                   "default: the first live sensor");
   scan->add_option("--out", scan_options.out,
                    "Folder for mesh.ply, trajectory.txt, hypotheses.json, objects/, renders/, "
                    "report.html, timings.json")

@@ -102,6 +102,7 @@ Command addRecordCommand(CLI::App& app) {
   record->add_option("--out", record_options.out, "The .oni file to write")->required();
   record->add_option("--device", record_options.device,
                      "Sensor URI (objscan devices lists them); default: the first one. "
+                     "freenect[:<index>] records a Kinect v1 through libfreenect; "
                      "virtual:<folder> or virtual:synth:<seed> streams a dataset or a synthetic "
                      "scene through objscan's virtual OpenNI2 sensor");
   auto* frames_option =
@@ -129,7 +130,8 @@ Command addFuseCommand(CLI::App& app) {
       "  objscan fuse ../data/rgbd_dataset_freiburg2_desk --out out/fr2 --voxel-size 0.004 "
       "--every 2");
   fuse->add_option("source", options->fuse.source,
-                   "X.oni, a TUM or 7-Scenes folder, synth:<seed>, live[:uri] or virtual:<source>")
+                   "X.oni, a TUM or 7-Scenes folder, synth:<seed>, live[:uri], freenect[:i] (a "
+                   "Kinect v1 through libfreenect) or virtual:<source>")
       ->required();
   fuse->add_option("--out", options->out, "Folder for mesh.ply and trajectory.txt")->required();
   addFusionOptions(fuse, options->fuse);

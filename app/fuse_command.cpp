@@ -31,9 +31,10 @@ void printFuseSummary(const pipeline::FusedScene& fused, const std::filesystem::
               o.intrinsics_origin.c_str(),
               o.depth_units.empty() ? "" : "; depth: ", o.depth_units.c_str());
   std::printf(
-      "frames        %zu read, %zu fused, %zu lost, %zu without depth, %zu unreadable%s\n",
+      "frames        %zu read, %zu fused, %zu lost, %zu without depth, %zu unreadable%s%s\n",
       o.frames_read, o.frames_fused, o.frames_lost, o.frames_without_depth, o.bad_frames,
-      o.without_pose ? (", " + std::to_string(o.without_pose) + " without a pose").c_str() : "");
+      o.without_pose ? (", " + std::to_string(o.without_pose) + " without a pose").c_str() : "",
+      o.live ? (", " + std::to_string(o.frames_dropped) + " dropped").c_str() : "");
   if (!o.first_loss.empty()) std::printf("first loss    %s\n", o.first_loss.c_str());
   std::printf("volume        %zu blocks of 8^3 voxels of %.1f mm, %.1f MB\n", o.blocks,
               1e3 * o.voxel_size_m, o.volume_mb);

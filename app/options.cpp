@@ -151,7 +151,7 @@ const CLI::Validator settingsFileCheck(
 std::string absolutePath(const std::string& value) {
   const auto starts = [&](std::string_view prefix) { return value.rfind(prefix, 0) == 0; };
   if (value.empty() || value == "live" || value == "groundtruth" || starts("live:") ||
-      starts("synth:")) {
+      value == "freenect" || starts("freenect:") || starts("synth:")) {
     return value;
   }
   if (starts("virtual:")) {

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "exit_codes.h"
+#include "objscan/capture/freenect.h"
 #include "objscan/capture/openni.h"
 #include "objscan/capture/virtual_sensor.h"
 #include "objscan/core/intrinsics.h"
@@ -17,22 +18,32 @@ namespace objscan::app {
 
 void runDevices() {
   const std::vector<capture::SensorDescription> sensors = capture::listSensors();
-  if (sensors.empty()) {
+  std::string why_no_kinect;
+  const std::vector<capture::FreenectDevice> kinects = capture::listFreenectDevices(&why_no_kinect);
+  if (sensors.empty() && kinects.empty()) {
     std::printf(
         "no sensor found (connect an Asus Xtion, PrimeSense Carmine or Kinect v1; objscan's "
         "virtual sensor opens with --device virtual:<folder> or virtual:synth:<seed>)\n");
+    if (!why_no_kinect.empty()) log::info("Kinect v1: " + why_no_kinect);
     return;
   }
   for (const capture::SensorDescription& s : sensors) {
-    std::printf("%s\t%s %s\tUSB %04x:%04x\n", s.uri.c_str(), s.vendor.c_str(), s.name.c_str(),
-                s.usb_vendor_id, s.usb_product_id);
+    std::printf("%s\t%s %s\tUSB %04x:%04x\tthrough OpenNI2\n", s.uri.c_str(), s.vendor.c_str(),
+                s.name.c_str(), s.usb_vendor_id, s.usb_product_id);
+  }
+  for (const capture::FreenectDevice& k : kinects) {
+    std::printf("%s\tMicrosoft Kinect v1%s%s\tUSB -\tthrough libfreenect%s (%s)\n",
+                k.source.c_str(), k.serial.empty() ? "" : ", ", k.serial.c_str(),
+                k.replay ? "'s fakenect" : "", k.library.c_str());
   }
 }
 
 int runRecord(const RecordCommandOptions& options) {
   capture::RecordOptions record;
   record.out = options.out;
-  record.device_uri = options.device;
+  record.device_uri = capture::isFreenectSource(options.device)
+                          ? pipeline::freenectThroughOpenNI(options.device)
+                          : options.device;
   record.max_frames = options.frames;
   record.max_seconds = options.seconds;
   record.compress_color = options.compress_color;
@@ -40,8 +51,8 @@ int runRecord(const RecordCommandOptions& options) {
 
   // Ground truth travels with recordings of a virtual sensor whose source has it. Opening the
   // source here first also reports a bad folder before any recording starts.
-  if (capture::isVirtualSensorUri(options.device)) {
-    record.ground_truth = pipeline::virtualSensorGroundTruth(options.device);
+  if (capture::isVirtualSensorUri(record.device_uri)) {
+    record.ground_truth = pipeline::virtualSensorGroundTruth(record.device_uri);
   }
 
   capture::RecordSummary summary;

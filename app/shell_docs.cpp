@@ -115,8 +115,9 @@ std::string bashCompletion(const CLI::App& app) {
       "    COMPREPLY=($(compgen -f -- \"$cur\"))\n";
   if (!sources.empty()) {
     // The sources that are not files: a synthetic scene, the first sensor, a virtual sensor.
-    script += "    case $command in " + sources +
-              ") COMPREPLY+=($(compgen -W \"synth: live virtual:\" -- \"$cur\")) ;; esac\n";
+    script +=
+        "    case $command in " + sources +
+        ") COMPREPLY+=($(compgen -W \"synth: live freenect virtual:\" -- \"$cur\")) ;; esac\n";
   }
   script +=
       "  fi\n"

@@ -35,6 +35,7 @@
 #include <vector>
 
 #include "objscan/capture/frame_source.h"
+#include "objscan/capture/freenect.h"
 #include "objscan/capture/synthetic/synthetic_source.h"
 #include "objscan/capture/virtual_sensor.h"
 
@@ -227,8 +228,13 @@ class VirtualDevice : public oni::driver::DeviceBase {
   void run(std::promise<std::string> opened) {
     std::unique_ptr<FrameSource> source;
     try {
-      source = objscan::capture::openSynthOrFolderSource(uri_.source);
+      // A Kinect (libfreenect) streams through this driver so that OpenNI2's recorder can record
+      // it.
+      source = objscan::capture::isFreenectSource(uri_.source)
+                   ? objscan::capture::openFreenect(uri_.source)
+                   : objscan::capture::openSynthOrFolderSource(uri_.source);
       const objscan::capture::SourceInfo& info = source->info();
+      live_ = info.live;
       intrinsics_ = info.intrinsics;
       description_ = info.description;
       // unplug_after is not announced: a real sensor gives no warning either.
@@ -291,6 +297,14 @@ class VirtualDevice : public oni::driver::DeviceBase {
         try {
           result = source->next();
         } catch (const std::exception& e) {
+          if (live_) {
+            // A sensor behind this one was lost: so is this one.
+            services_.errorLoggerAppend("%s", e.what());
+            lock.lock();
+            finished_ = true;
+            if (on_unplug) on_unplug();
+            continue;
+          }
           result = objscan::capture::FrameResult::bad(e.what());
         }
       }
@@ -307,10 +321,14 @@ class VirtualDevice : public oni::driver::DeviceBase {
       const auto deadline =
           clock_start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                             std::chrono::duration<double>(emitted / uri_.fps));
-      wake_.wait_until(lock, deadline, [&] { return quit_; });
+      // A sensor behind this one keeps its own pace.
+      if (!live_) wake_.wait_until(lock, deadline, [&] { return quit_; });
       if (quit_) break;
 
       const objscan::RgbdFrame& frame = result.frame;
+      // The sensor's own frame numbers, where it has them, so that a frame it dropped is a gap.
+      const int number =
+          frame.device_frame >= 0 ? static_cast<int>(frame.device_frame) + 1 : emitted + 1;
       const auto timestamp_us = static_cast<std::uint64_t>(
           std::max(0.0, std::round((frame.stamp_s - time_offset_s_) * 1e6)));
       const int width = frame.depth_m.cols;
@@ -333,12 +351,12 @@ class VirtualDevice : public oni::driver::DeviceBase {
         if (!stream->started()) continue;
         if (stream->type() == ONI_SENSOR_DEPTH) {
           stream->deliver(depth_mm.data(), static_cast<int>(depth_mm.size() * 2), width, height,
-                          emitted + 1, timestamp_us);
+                          number, timestamp_us);
         } else if (!frame.color_rgb.empty()) {
           const cv::Mat rgb =
               frame.color_rgb.isContinuous() ? frame.color_rgb : frame.color_rgb.clone();
           stream->deliver(rgb.data, static_cast<int>(rgb.total() * rgb.elemSize()), rgb.cols,
-                          rgb.rows, emitted + 1, timestamp_us);
+                          rgb.rows, number, timestamp_us);
         }
       }
       ++emitted;
@@ -357,6 +375,7 @@ class VirtualDevice : public oni::driver::DeviceBase {
   bool quit_ = false;
   bool finished_ = false;
   bool restart_clock_ = true;
+  bool live_ = false;  ///< the source is a sensor (a Kinect): frames go out as they come
   std::vector<VirtualStream*> streams_;
   std::vector<OniVideoMode> modes_;
   std::vector<OniSensorInfo> sensors_;
@@ -579,8 +598,11 @@ class VirtualDriver : public oni::driver::DriverBase {
   static OniDeviceInfo makeInfo(const std::string& uri) {
     OniDeviceInfo info{};
     copyString(info.uri, sizeof(info.uri), uri);
-    copyString(info.vendor, sizeof(info.vendor), "objscan");
-    copyString(info.name, sizeof(info.name), "virtual sensor");
+    const bool kinect = objscan::capture::isFreenectSource(
+        uri.substr(std::string_view(objscan::capture::kVirtualUriPrefix).size()));
+    copyString(info.vendor, sizeof(info.vendor), kinect ? "Microsoft" : "objscan");
+    copyString(info.name, sizeof(info.name),
+               kinect ? "Kinect v1 (libfreenect, through the virtual sensor)" : "virtual sensor");
     return info;
   }
 

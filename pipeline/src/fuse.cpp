@@ -106,6 +106,7 @@ FusedScene fuseSource(const FuseOptions& options, const FuseLimits& limits) {
     ProgressBar progress(limits.progress_label, total);
     std::size_t read = 0;
     std::optional<double> last_stamp_s;
+    std::int64_t last_device_frame = -1;
     for (;;) {
       if (limits.stop && limits.stop->load()) {
         out.interrupted = true;
@@ -149,6 +150,15 @@ FusedScene fuseSource(const FuseOptions& options, const FuseLimits& limits) {
       }
       last_stamp_s = frame.stamp_s;
       ++out.frames_read;
+      if (frame.device_frame >= 0) {
+        // A gap in the sensor's frame numbers: frames it dropped, or that came while fusion was
+        // busy and the sensor (which keeps only a few) let go.
+        if (last_device_frame >= 0 && frame.device_frame > last_device_frame + 1) {
+          out.frames_dropped +=
+              static_cast<std::size_t>(frame.device_frame - last_device_frame - 1);
+        }
+        last_device_frame = frame.device_frame;
+      }
       if (options.no_color) frame.color_rgb.release();
       std::optional<Pose> pose;
       if (given) {

@@ -2,6 +2,7 @@
 
 #include <filesystem>
 
+#include "objscan/capture/freenect.h"
 #include "objscan/capture/openni.h"
 #include "objscan/capture/synthetic/synthetic_source.h"
 #include "objscan/capture/virtual_sensor.h"
@@ -10,7 +11,8 @@
 namespace objscan::pipeline {
 
 bool isLiveSource(const std::string& spec) {
-  return spec == "live" || spec.rfind("live:", 0) == 0 || capture::isVirtualSensorUri(spec);
+  return spec == "live" || spec.rfind("live:", 0) == 0 || capture::isVirtualSensorUri(spec) ||
+         capture::isFreenectSource(spec);
 }
 
 std::unique_ptr<capture::FrameSource> openFrameSource(const std::string& spec,
@@ -20,7 +22,21 @@ std::unique_ptr<capture::FrameSource> openFrameSource(const std::string& spec,
   std::error_code ec;
   const bool live = spec == "live" || spec.rfind("live:", 0) == 0;
   if (options.record && !isLiveSource(spec)) {
-    throw InputError(spec, "--record needs a live source (a sensor or virtual:...)");
+    throw InputError(spec, "--record needs a live source (a sensor, freenect or virtual:...)");
+  }
+  if (capture::isFreenectSource(spec)) {
+    if (!options.selection.selectsAll()) {
+      throw std::invalid_argument("--start/--end/--every apply to recordings, not live sensors");
+    }
+    if (!options.record) {
+      return capture::openFreenect(spec, options.intrinsics, options.intrinsics_origin);
+    }
+    // Recorded through OpenNI2's own recorder: objscan's virtual OpenNI2 sensor streams the
+    // Kinect, so the file is an .oni like an Xtion's.
+    std::optional<capture::LiveRecording> record = options.record;
+    if (!record->ground_truth) record->ground_truth = capture::freenectGroundTruth();
+    return capture::openSensor(freenectThroughOpenNI(spec), options.intrinsics,
+                               options.intrinsics_origin, record);
   }
   // The sensor names come before the file system: `live` is the sensor even where the working
   // directory holds a folder of that name (./live names the folder).
@@ -49,8 +65,15 @@ std::unique_ptr<capture::FrameSource> openFrameSource(const std::string& spec,
                    "folder, synth:<seed>, live or virtual:<folder>");
 }
 
+std::string freenectThroughOpenNI(const std::string& spec) {
+  (void)capture::freenectIndex(spec);  // a bad index is refused here, not by the driver
+  return capture::kVirtualUriPrefix + spec;
+}
+
 std::optional<Trajectory> virtualSensorGroundTruth(const std::string& uri) {
   const capture::VirtualSensorUri parsed = capture::parseVirtualSensorUri(uri);
+  // A Kinect is opened once, by the sensor (fakenect replays a dump once per process).
+  if (capture::isFreenectSource(parsed.source)) return capture::freenectGroundTruth();
   std::optional<Trajectory> ground_truth = openFrameSource(parsed.source, {})->info().ground_truth;
   if (ground_truth && ground_truth->empty()) ground_truth.reset();
   return ground_truth;

@@ -158,7 +158,7 @@ TEST(Cli, CompletionAndManPageComeFromTheOptionsThemselves) {
   EXPECT_EQ(complete("objscan scan x --object-format g", 4), "glb\n");
   EXPECT_EQ(complete("objscan render out --view t", 4), "trajectory three-quarter top\n");
   EXPECT_EQ(complete("objscan train --kind r", 3), "rbf_svm\n");
-  EXPECT_EQ(complete("objscan scan ''", 2), "synth: live virtual:\n");
+  EXPECT_EQ(complete("objscan scan ''", 2), "synth: live freenect virtual:\n");
   EXPECT_EQ(complete("objscan fuse v", 2), "virtual:\n");
   EXPECT_EQ(complete("objscan discover ''", 2), "\n");  // meshes: files only
 

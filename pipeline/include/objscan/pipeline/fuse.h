@@ -76,6 +76,8 @@ struct FuseStats {
   std::size_t frames_read = 0, frames_fused = 0, frames_lost = 0, frames_without_depth = 0;
   std::size_t frames_processed = 0;  ///< handed to fusion (fused, lost or without depth)
   std::size_t bad_frames = 0, without_pose = 0;
+  /// A live sensor's frames never read: gaps in its frame numbers (RgbdFrame::device_frame).
+  std::size_t frames_dropped = 0;
   std::string first_loss;  ///< "frame N: why", empty when tracking never failed
   std::size_t blocks = 0;
   double volume_mb = 0.0;

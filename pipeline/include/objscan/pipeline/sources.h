@@ -21,7 +21,8 @@ struct SourceOptions {
   std::optional<capture::LiveRecording> record;
 };
 
-/// Whether a <source> is a sensor: `live`, `live:<uri>` or a virtual sensor (`virtual:...`).
+/// Whether a <source> is a sensor: `live`, `live:<uri>`, a virtual sensor (`virtual:...`) or a
+/// Kinect through libfreenect (`freenect[:<index>]`).
 bool isLiveSource(const std::string& spec);
 
 /// Opens a <source> as the command line names it:
@@ -30,11 +31,18 @@ bool isLiveSource(const std::string& spec);
 ///   synth:<seed>[,option=value]    a synthetic scene rendered on the fly
 ///   live | live:<uri>              the first OpenNI2 sensor, or the one with that URI
 ///   virtual:<source>[?options]     objscan's virtual OpenNI2 sensor streaming <source>
+///   freenect | freenect:<index>    a Kinect v1 through libfreenect (or a dump through fakenect);
+///                                  with --record, read through the virtual OpenNI2 sensor so
+///                                  that OpenNI2's recorder writes the .oni
 /// The sensor forms are matched first, as text: a folder named `live` is ./live.
 /// Throws InputError / std::invalid_argument for sources that cannot be opened (and for --record
 /// with a source that is not live), NoSensorError for `live` with no sensor attached.
 std::unique_ptr<capture::FrameSource> openFrameSource(const std::string& spec,
                                                       const SourceOptions& options);
+
+/// The virtual OpenNI2 sensor's URI that streams the Kinect `spec` (freenect[:<index>]).
+/// Throws std::invalid_argument for a bad index.
+std::string freenectThroughOpenNI(const std::string& spec);
 
 /// The ground truth of the source a virtual sensor URI streams (virtual:<folder> or
 /// virtual:synth:<seed>), if it has one. Opening the source also reports a bad folder early.
