@@ -338,9 +338,15 @@ std::vector<FreenectDevice> listFreenectDevices(std::string* why) {
     devices.push_back({"freenect:0", std::string("dump ") + dump, lib->path, true});
     return devices;
   }
-  Context ctx(*lib);
-  const int count = lib->num_devices(ctx.get());
-  const std::vector<std::string> numbers = serials(*lib, ctx.get());
+  std::unique_ptr<Context> ctx;
+  try {
+    ctx = std::make_unique<Context>(*lib);
+  } catch (const std::exception& e) {
+    if (why != nullptr) *why = e.what();
+    return devices;
+  }
+  const int count = lib->num_devices(ctx->get());
+  const std::vector<std::string> numbers = serials(*lib, ctx->get());
   for (int i = 0; i < count; ++i) {
     devices.push_back({"freenect:" + std::to_string(i),
                        i < static_cast<int>(numbers.size()) ? numbers[static_cast<std::size_t>(i)]

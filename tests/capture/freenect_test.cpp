@@ -7,6 +7,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <csignal>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -15,7 +17,9 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 
+#include "background_process.h"
 #include "cli_expect.h"
+#include "http_client.h"
 #include "objscan/capture/folder_source.h"
 #include "objscan/capture/freenect.h"
 #include "objscan/capture/openni.h"
@@ -423,6 +427,32 @@ TEST_F(Fakenect, BadSetupsAreOneErrorLine) {
   expectOneErrorLine(onFakenect(d, {"fuse", "freenect", "--start", "1", "--out", out.string()}), 2,
                      "not live sensors");
   EXPECT_FALSE(fs::exists(out));
+}
+
+// --serve: the live page follows a Kinect scan.
+TEST_F(Fakenect, TheLivePageServesAKinectFuse) {
+  const fs::path d = dump("serve");
+  // BackgroundProcess passes this process's environment on.
+  ASSERT_EQ(setenv("LD_LIBRARY_PATH", kFakenectDir.c_str(), 1), 0);
+  ASSERT_EQ(setenv("FAKENECT_PATH", d.c_str(), 1), 0);
+  testing::BackgroundProcess fuse({OBJSCAN_EXE, "fuse", "freenect", "--out",
+                                   (*dir_ / "served").string(), "--serve", "127.0.0.1:0",
+                                   "--no-live-discovery"});
+  unsetenv("LD_LIBRARY_PATH");
+  unsetenv("FAKENECT_PATH");
+  const int port = testing::portOf(fuse.waitForLine("live page", 60));
+  ASSERT_GT(port, 0) << fuse.err();
+  ASSERT_FALSE(
+      fuse.waitForLine("live page     http://127.0.0.1:" + std::to_string(port) + "/ shows", 120)
+          .empty())
+      << fuse.err();
+  const testing::Answer state = testing::get(port, "/api/state?after=0");
+  ASSERT_EQ(state.status, 200);
+  const nlohmann::json j = nlohmann::json::parse(state.body);
+  EXPECT_EQ(j["frames"]["fused"], kFrames) << state.body;
+  EXPECT_EQ(j["final"]["outcome"], "finished") << state.body;
+  fuse.signal(SIGTERM);
+  EXPECT_EQ(fuse.wait(60), 0) << fuse.err();
 }
 
 // The real libfreenect on a machine with no Kinect: exit 3, as for OpenNI2 sensors.
