@@ -470,6 +470,7 @@ class FreenectSource final : public FrameSource {
     {
       std::lock_guard<std::mutex> lock(mutex_);
       quit_ = true;
+      taken_.notify_all();
     }
     if (pump_.joinable()) pump_.join();
     closeDevice();
@@ -562,6 +563,7 @@ class FreenectSource final : public FrameSource {
       }
       pair = std::move(queue_.front());
       queue_.pop_front();
+      taken_.notify_all();
     }
     RgbdFrame frame;
     frame.index = static_cast<std::int64_t>(delivered_++);
@@ -616,9 +618,14 @@ class FreenectSource final : public FrameSource {
   void pushPair() {
     RawPair pair{std::move(pending_depth_), last_color_, pending_depth_ticks_};
     pending_depth_ = cv::Mat();
-    std::lock_guard<std::mutex> lock(mutex_);
+    std::unique_lock<std::mutex> lock(mutex_);
+    if (lib_.replay) {
+      // A dump is replayed whole: fakenect waits for the reader (and shortens its next pause).
+      taken_.wait(lock, [&] { return queue_.size() < kQueueFrames || quit_; });
+      if (quit_) return;
+    }
     queue_.push_back(std::move(pair));
-    if (queue_.size() > kQueueFrames) queue_.pop_front();  // the reader fell behind: drop
+    if (queue_.size() > kQueueFrames) queue_.pop_front();  // a Kinect: the oldest goes
     arrived_.notify_all();
   }
 
@@ -688,6 +695,7 @@ class FreenectSource final : public FrameSource {
   // Shared, under mutex_.
   std::mutex mutex_;
   std::condition_variable arrived_;
+  std::condition_variable taken_;  ///< the reader took a frame (a dump's pump waits for room)
   std::deque<RawPair> queue_;
   bool quit_ = false;
   bool ended_ = false;

@@ -76,8 +76,9 @@ struct KinectModel {
 /// else the model's colour camera (marked assumed). Time stamps are the device's 60 MHz clock
 /// (unwrapped); RgbdFrame::device_frame counts 30 Hz frames on it, so a gap is a dropped frame.
 /// next() waits up to 3 s for a frame, then throws std::runtime_error (the sensor is lost); a
-/// USB error throws the same way. The source keeps up to 8 frames the reader has not taken yet
-/// and drops the oldest beyond that, as a sensor does.
+/// USB error throws the same way. The source keeps up to 8 frames the reader has not taken yet;
+/// beyond that a Kinect's oldest frame goes, as with any sensor, while a dump's replay waits for
+/// the reader (a dump replays every frame, whatever the reader's pace).
 ///
 /// Under fakenect ($FAKENECT_PATH names the dump), the dump is checked before fakenect reads it
 /// (fakenect itself exits the process on a missing file and reads past short ones): an entry that
