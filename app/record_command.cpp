@@ -22,8 +22,9 @@ void runDevices() {
   const std::vector<capture::FreenectDevice> kinects = capture::listFreenectDevices(&why_no_kinect);
   if (sensors.empty() && kinects.empty()) {
     std::printf(
-        "no sensor found (connect an Asus Xtion, PrimeSense Carmine or Kinect v1; objscan's "
-        "virtual sensor opens with --device virtual:<folder> or virtual:synth:<seed>)\n");
+        "no sensor found (connect an Asus Xtion, PrimeSense Carmine or Kinect v1, which is "
+        "freenect; objscan's virtual sensor opens with --device virtual:<folder> or "
+        "virtual:synth:<seed>)\n");
     if (!why_no_kinect.empty()) log::info("Kinect v1: " + why_no_kinect);
     return;
   }

@@ -101,8 +101,9 @@ void openDevice(openni::Device& device, const std::string& given_uri, OpenNIPath
   if (uri.empty()) {
     if (listSensorsInternal().empty()) {
       throw NoSensorError(
-          "no sensor found: connect an OpenNI2 sensor (Asus Xtion, PrimeSense Carmine, Kinect v1) "
-          "or name one by its URI (objscan devices lists them; virtual:<folder> needs none)");
+          "no sensor found: connect an OpenNI2 sensor (Asus Xtion, PrimeSense Carmine) or name "
+          "one by its URI (objscan devices lists them; virtual:<folder> needs none); a Kinect v1 "
+          "is the source freenect");
     }
     if (device.open(openni::ANY_DEVICE) != openni::STATUS_OK) {
       std::string message = "cannot open the first sensor: ";

@@ -14,8 +14,9 @@
 #include "objscan/core/intrinsics.h"
 #include "objscan/core/trajectory.h"
 
-/// Capture through the OpenNI2 runtime: live sensors (Asus Xtion, PrimeSense, Kinect v1 through
-/// their OpenNI2 drivers, and objscan's virtual sensor), `.oni` replay and `.oni` recording.
+/// Capture through the OpenNI2 runtime: live sensors (Asus Xtion, PrimeSense Carmine through their
+/// OpenNI2 drivers, and objscan's virtual sensor, which also streams a Kinect v1 from libfreenect
+/// for recording: freenect.h), `.oni` replay and `.oni` recording.
 /// OpenNI2 types stay out of this header.
 namespace objscan::capture {
 
