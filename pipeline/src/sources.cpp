@@ -66,7 +66,9 @@ std::unique_ptr<capture::FrameSource> openFrameSource(const std::string& spec,
 }
 
 std::string freenectThroughOpenNI(const std::string& spec) {
-  (void)capture::freenectIndex(spec);  // a bad index is refused here, not by the driver
+  // The driver can only say that it could not open the device; errors keep their classes (and
+  // exit codes) when they are found here first.
+  capture::checkFreenect(spec);
   return capture::kVirtualUriPrefix + spec;
 }
 

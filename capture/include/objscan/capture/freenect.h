@@ -94,6 +94,11 @@ std::unique_ptr<FrameSource> openFreenect(const std::string& spec,
                                           const std::optional<Intrinsics>& intrinsics_override = {},
                                           const std::string& intrinsics_origin = {});
 
+/// Throws what openFreenect() would before it opens the device (library missing, no Kinect, bad
+/// index, a dump it cannot replay), without opening it: for a Kinect that a program reaches
+/// another way (the virtual OpenNI2 sensor, for recording), so errors keep their classes.
+void checkFreenect(const std::string& spec);
+
 /// The ground truth a freenect source will report, without opening the device: the dump's
 /// groundtruth.txt under fakenect, nothing for a device.
 std::optional<Trajectory> freenectGroundTruth();

@@ -40,8 +40,8 @@ bool isLiveSource(const std::string& spec);
 std::unique_ptr<capture::FrameSource> openFrameSource(const std::string& spec,
                                                       const SourceOptions& options);
 
-/// The virtual OpenNI2 sensor's URI that streams the Kinect `spec` (freenect[:<index>]).
-/// Throws std::invalid_argument for a bad index.
+/// The virtual OpenNI2 sensor's URI that streams the Kinect `spec` (freenect[:<index>]), once
+/// capture::checkFreenect(spec) found nothing wrong (it throws as opening the Kinect would).
 std::string freenectThroughOpenNI(const std::string& spec);
 
 /// The ground truth of the source a virtual sensor URI streams (virtual:<folder> or
