@@ -42,20 +42,19 @@ void writeFile(const std::filesystem::path& path, const std::string& header, con
 FakenectDumpSummary writeFakenectDump(FrameSource& source, const std::filesystem::path& dir,
                                       const FakenectDumpOptions& options) {
   namespace fs = std::filesystem;
+  if (!(options.slow_down > 0.0) || !std::isfinite(options.slow_down)) {
+    throw std::invalid_argument("slow_down must be a positive number");
+  }
+  const SourceInfo& info = source.info();
+  if (info.intrinsics.width_px != kWidth || info.intrinsics.height_px != kHeight) {
+    throw InputError(info.description, "a Kinect dump holds 640x480 frames");
+  }
   std::error_code ec;
   if (fs::exists(dir, ec) && !fs::is_empty(dir, ec)) {
     throw OutputError(dir, "exists and is not empty: a dump goes into a new folder");
   }
   fs::create_directories(dir, ec);
   if (ec) throw OutputError(dir, "cannot be created: " + ec.message());
-  if (!(options.slow_down > 0.0) || !std::isfinite(options.slow_down)) {
-    throw std::invalid_argument("slow_down must be a positive number");
-  }
-
-  const SourceInfo& info = source.info();
-  if (info.intrinsics.width_px != kWidth || info.intrinsics.height_px != kHeight) {
-    throw InputError(info.description, "a Kinect dump holds 640x480 frames");
-  }
   const KinectModel model = KinectModel::nominal(info.intrinsics);
   writeIntrinsicsJson(dir / "intrinsics.json", info.intrinsics);
 
