@@ -43,8 +43,9 @@ struct Library {
   decltype(&freenect_stop_depth) stop_depth = nullptr;
   decltype(&freenect_stop_video) stop_video = nullptr;
   decltype(&freenect_process_events) process_events = nullptr;
-  // Not in fakenect:
+  // fakenect's ignores the timeout (it is process_events again, sleeping as the dump pauses).
   decltype(&freenect_process_events_timeout) process_events_timeout = nullptr;
+  // Not in fakenect:
   decltype(&freenect_copy_registration) copy_registration = nullptr;
   decltype(&freenect_destroy_registration) destroy_registration = nullptr;
   decltype(&freenect_list_device_attributes) list_device_attributes = nullptr;
