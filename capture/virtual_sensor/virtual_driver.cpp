@@ -279,7 +279,10 @@ class VirtualDevice : public oni::driver::DeviceBase {
         // the first frame reaches both. A second, not 200 ms: under the sanitizers, beside other
         // tests, `record` once started colour more than 200 ms after depth, and its recording
         // then lacked the first colour frame. Only a program that starts depth alone waits it.
-        wake_.wait_for(lock, std::chrono::seconds(1), [&] { return quit_ || allStarted(); });
+        // A sensor behind this one (a Kinect) holds its first frame here, not on a clock: up to
+        // 5 s (a fresh clone's tests, beside its build, once lost a Kinect's first colour frame).
+        wake_.wait_for(lock, std::chrono::seconds(live_ ? 5 : 1),
+                       [&] { return quit_ || allStarted(); });
         if (quit_) break;
       }
       if (restart_clock_) {
