@@ -24,9 +24,9 @@ using freenect_detail::kHeight;
 using freenect_detail::kTicksPerSecond;
 using freenect_detail::kWidth;
 
-/// The first device time stamp: 1 s before the 32-bit clock wraps, so that every dump longer than
-/// a second has the wrap a Kinect's clock makes every 71.6 s.
-constexpr std::uint64_t kFirstTicks = (std::uint64_t{1} << 32) - 60'000'000;
+/// The first device time stamp: ten 30 Hz frames before the 32-bit clock wraps, so that every dump
+/// of more than ten frames has the wrap a Kinect's clock makes every 71.6 s.
+constexpr std::uint64_t kFirstTicks = (std::uint64_t{1} << 32) - 10 * 2'000'000;
 
 void writeFile(const std::filesystem::path& path, const std::string& header, const void* data,
                std::size_t bytes) {

@@ -165,8 +165,10 @@ std::string checkEntry(const std::filesystem::path& dir, const std::string& line
 }  // namespace
 
 const Library& Library::get() {
-  static const Library library = load();  // a failed load throws again at the next call
-  return library;
+  // Never destroyed: a pump left asleep in fakenect may still use it while the process exits. A
+  // failed load throws again at the next call.
+  static const Library* const library = new Library(load());
+  return *library;
 }
 
 DumpIndex readDumpIndex(const std::filesystem::path& dir) {
@@ -241,7 +243,7 @@ class Context {
  public:
   explicit Context(const Library& lib) : lib_(lib) {
     if (lib_.init(&ctx_, nullptr) < 0 || ctx_ == nullptr) {
-      throw NoSensorError("no Kinect can be found: libfreenect could not start libusb");
+      throw NoSensorError("no Kinect found: libfreenect could not start libusb");
     }
     lib_.set_log_callback(ctx_, logFromLibrary);
     lib_.set_log_level(ctx_, FREENECT_LOG_WARNING);
@@ -371,6 +373,13 @@ struct RawPair {
   std::int64_t ticks = 0;
 };
 
+/// Set once a source has replayed through fakenect, whose state is global to the process and
+/// never reset (its place in INDEX.txt, the callbacks, the user pointer).
+std::atomic<bool>& fakenectReplayed() {
+  static std::atomic<bool> replayed{false};
+  return replayed;
+}
+
 /// What opening a source checks before the device is opened.
 struct Preflight {
   const Library* lib = nullptr;
@@ -390,6 +399,11 @@ Preflight preflight(const std::string& spec) {
   }
   p.lib = &Library::get();
   if (p.lib->replay) {
+    if (fakenectReplayed().load()) {
+      throw InputError(spec,
+                       "fakenect replays one dump once per process (it keeps its place in the "
+                       "dump for the life of the process): run objscan again for another replay");
+    }
     p.dump = dumpFolder();
     p.entries = readDumpIndex(p.dump);
     if (p.entries.depth_frames == 0) {
@@ -440,9 +454,9 @@ class Session {
 
   void close() {
     if (dev_ == nullptr) return;
+    lib_.set_user(dev_, nullptr);  // first: stopping may still hand over a finished transfer
     lib_.stop_depth(dev_);
     lib_.stop_video(dev_);
-    lib_.set_user(dev_, nullptr);
     lib_.close_device(dev_);
     dev_ = nullptr;
   }
@@ -574,7 +588,7 @@ class Session {
     if (!with_color) ++without_color_;
     std::unique_lock<std::mutex> lock(mutex_);
     if (replay_) {
-      // A dump is replayed whole: fakenect waits for the reader (and shortens its next pause).
+      // A dump is replayed whole: fakenect waits for the reader (the replay takes that long more).
       taken_.wait(lock, [&] { return queue_.size() < kQueueFrames || quit_; });
       if (quit_) return;
     }
@@ -625,6 +639,7 @@ class FreenectSource final : public FrameSource {
       }
       info_.frame_count = p.entries.depth_frames;
     }
+    if (replay_) fakenectReplayed().store(true);
     session_ = std::make_shared<Session>(lib, replay_, p.entries.entries.size());
     freenect_device*& dev = session_->device();
     const int opened = lib.open_device(session_->context(), &dev, p.index);
