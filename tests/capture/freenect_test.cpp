@@ -477,6 +477,12 @@ TEST_F(Fakenect, BadSetupsAreOneErrorLine) {
                      "must be 0 to 255");
   expectOneErrorLine(onFakenect(d, {"fuse", "freenect", "--start", "1", "--out", out.string()}), 2,
                      "not live sensors");
+  // fakenect's place in the dump is global to the process: a second replay is refused.
+  const ProcessResult twice = onFakenect(d, {"discover", "freenect", "freenect", "--frame", "1",
+                                             "--out", out.string(), "--no-catalog"});
+  EXPECT_EQ(twice.exit_code, 2) << twice.err;
+  EXPECT_NE(twice.err.find("fakenect replays one dump once per process"), std::string::npos)
+      << twice.err;
   EXPECT_FALSE(fs::exists(out));
 }
 
