@@ -275,14 +275,14 @@ class VirtualDevice : public oni::driver::DeviceBase {
       wake_.wait(lock, [&] { return quit_ || (anyStreamStarted() && !finished_); });
       if (quit_) break;
       if (emitted == 0) {
-        // Programs start depth and colour one after the other: give the second a moment so that
-        // the first frame reaches both. A second, not 200 ms: under the sanitizers, beside other
-        // tests, `record` once started colour more than 200 ms after depth, and its recording
-        // then lacked the first colour frame. Only a program that starts depth alone waits it.
-        // A sensor behind this one (a Kinect) holds its first frame here, not on a clock: up to
-        // 5 s (a fresh clone's tests, beside its build, once lost a Kinect's first colour frame).
-        wake_.wait_for(lock, std::chrono::seconds(live_ ? 5 : 1),
-                       [&] { return quit_ || allStarted(); });
+        // Programs start depth and colour one after the other: give the second time to start, so
+        // that the first frame reaches both. 200 ms was too short (under the sanitizers, beside
+        // other tests, `record` once started colour later, and its recording lacked the first
+        // colour frame), and so was a second (a fresh clone's tests beside its build lost a
+        // Kinect's first colour frame; sanitizer runs of the OpenNI2 tests beside the live-page
+        // tests a folder's). Only a program that creates a colour stream and never starts it
+        // waits the whole 5 s.
+        wake_.wait_for(lock, std::chrono::seconds(5), [&] { return quit_ || allStarted(); });
         if (quit_) break;
       }
       if (restart_clock_) {
