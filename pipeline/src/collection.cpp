@@ -20,6 +20,7 @@
 #include "objscan/core/progress.h"
 #include "objscan/discovery/catalog.h"
 #include "objscan/discovery/recurrence.h"
+#include "objscan/discovery/segment.h"
 #include "objscan/render/snapshots.h"
 #include "objscan/report/collection_page.h"
 #include "objscan/report/results_io.h"
@@ -58,20 +59,8 @@ Eigen::Vector3f decreasing(Eigen::Vector3f e) {
 /// Whether two segments of one scene share more than half of the smaller one's vertices (the
 /// same object at two scales). Vertex lists are increasing.
 bool mostlyShared(const discovery::CatalogSegment& a, const discovery::CatalogSegment& b) {
-  std::size_t shared = 0;
-  auto i = a.vertices.begin(), j = b.vertices.begin();
-  while (i != a.vertices.end() && j != b.vertices.end()) {
-    if (*i < *j) {
-      ++i;
-    } else if (*j < *i) {
-      ++j;
-    } else {
-      ++shared;
-      ++i;
-      ++j;
-    }
-  }
-  return 2 * shared > std::min(a.vertices.size(), b.vertices.size());
+  return 2 * discovery::sharedVertexCount(a.vertices, b.vertices) >
+         std::min(a.vertices.size(), b.vertices.size());
 }
 
 /// A picture to render: a segment of a scene, ranked (painted in its rank's colour with the
