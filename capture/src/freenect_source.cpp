@@ -323,13 +323,22 @@ std::vector<FreenectDevice> listFreenectDevices(std::string* why) {
   return devices;
 }
 
+namespace {
+
+/// The dump's groundtruth.txt, when it has one.
+std::optional<Trajectory> dumpGroundTruth(const std::filesystem::path& dump) {
+  const std::filesystem::path file = dump / "groundtruth.txt";
+  std::error_code ec;
+  if (!std::filesystem::exists(file, ec)) return std::nullopt;
+  return readTumTrajectory(file);
+}
+
+}  // namespace
+
 std::optional<Trajectory> freenectGroundTruth() {
   try {
     if (!Library::get().replay) return std::nullopt;
-    const std::filesystem::path file = dumpFolder() / "groundtruth.txt";
-    std::error_code ec;
-    if (!std::filesystem::exists(file, ec)) return std::nullopt;
-    return readTumTrajectory(file);
+    return dumpGroundTruth(dumpFolder());
   } catch (const std::runtime_error&) {
     return std::nullopt;  // not installed, no dump: opening the source says why
   }
@@ -417,9 +426,7 @@ Preflight preflight(const std::string& spec) {
     if (std::filesystem::exists(p.dump / "intrinsics.json", ec)) {
       p.dump_intrinsics = readIntrinsicsJson(p.dump / "intrinsics.json");
     }
-    if (std::filesystem::exists(p.dump / "groundtruth.txt", ec)) {
-      p.ground_truth = readTumTrajectory(p.dump / "groundtruth.txt");
-    }
+    p.ground_truth = dumpGroundTruth(p.dump);
     return p;
   }
   const Context ctx(*p.lib);

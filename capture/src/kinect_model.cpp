@@ -5,17 +5,14 @@
 #include <algorithm>
 #include <cmath>
 
+#include "freenect_library.h"
 #include "objscan/capture/freenect.h"
 
 namespace objscan::capture {
-namespace {
-constexpr int kNominalWidth = 640;
-constexpr int kNominalHeight = 480;
-}  // namespace
 
 KinectModel KinectModel::nominal(const Intrinsics& color) {
   KinectModel m;
-  m.ir = Intrinsics{580.0, 580.0, 319.5, 239.5, kNominalWidth, kNominalHeight};
+  m.ir = Intrinsics{580.0, 580.0, 319.5, 239.5, freenect_detail::kWidth, freenect_detail::kHeight};
   m.color = color;
   m.color_x_m = 0.025;
   m.projector_baseline_m = 0.075;

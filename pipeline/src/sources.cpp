@@ -24,27 +24,22 @@ std::unique_ptr<capture::FrameSource> openFrameSource(const std::string& spec,
   if (options.record && !isLiveSource(spec)) {
     throw InputError(spec, "--record needs a live source (a sensor, freenect or virtual:...)");
   }
-  if (capture::isFreenectSource(spec)) {
-    if (!options.selection.selectsAll()) {
-      throw std::invalid_argument("--start/--end/--every apply to recordings, not live sensors");
-    }
-    if (!options.record) {
-      return capture::openFreenect(spec, options.intrinsics, options.intrinsics_origin);
-    }
-    // Recorded through OpenNI2's own recorder: objscan's virtual OpenNI2 sensor streams the
-    // Kinect, so the file is an .oni like an Xtion's.
-    std::optional<capture::LiveRecording> record = options.record;
-    if (!record->ground_truth) record->ground_truth = capture::freenectGroundTruth();
-    return capture::openSensor(freenectThroughOpenNI(spec), options.intrinsics,
-                               options.intrinsics_origin, record);
-  }
   // The sensor names come before the file system: `live` is the sensor even where the working
   // directory holds a folder of that name (./live names the folder).
   if (isLiveSource(spec)) {
     if (!options.selection.selectsAll()) {
       throw std::invalid_argument("--start/--end/--every apply to recordings, not live sensors");
     }
-    const std::string uri = spec == "live" ? std::string() : live ? spec.substr(5) : spec;
+    const bool kinect = capture::isFreenectSource(spec);
+    if (kinect && !options.record) {
+      return capture::openFreenect(spec, options.intrinsics, options.intrinsics_origin);
+    }
+    // A Kinect is recorded through OpenNI2's own recorder: objscan's virtual OpenNI2 sensor
+    // streams it, so the file is an .oni like an Xtion's.
+    const std::string uri = kinect           ? freenectThroughOpenNI(spec)
+                            : spec == "live" ? std::string()
+                            : live           ? spec.substr(5)
+                                             : spec;
     std::optional<capture::LiveRecording> record = options.record;
     if (record && !record->ground_truth && capture::isVirtualSensorUri(uri)) {
       record->ground_truth = virtualSensorGroundTruth(uri);
